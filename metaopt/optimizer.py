@@ -1,0 +1,75 @@
+"""The Optimizer interface: ask/tell, always minimizing, with a plain-JSON state."""
+
+from __future__ import annotations
+
+from abc import ABC, abstractmethod
+from collections.abc import Callable
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+from metaopt.params import Param
+from metaopt.space import Space
+
+
+class Optimizer(ABC):
+    """An ask/tell optimizer over a Space that minimizes.
+
+    The run loop translates maximization and failed evaluations (+inf) before ``tell``.
+    ``state_dict`` must capture everything, random generator included, as plain JSON types, so
+    that ``load_state_dict`` on a freshly built optimizer continues bit for bit.
+    """
+
+    #: True when the optimizer can take results one at a time in any order (asynchronous mode).
+    steady_state: bool = False
+
+    def __init__(self, space: Space, seed: int) -> None:
+        self.space = space
+        self.rng = np.random.default_rng(seed)
+
+    @property
+    def batch_size(self) -> int:
+        """How many candidates the optimizer prefers to be asked for at once."""
+        return 1
+
+    @abstractmethod
+    def ask(self, n: int) -> np.ndarray:
+        """Propose n candidates, shape (n, dim), inside the space."""
+
+    @abstractmethod
+    def tell(self, candidates: np.ndarray, fitnesses: np.ndarray) -> None:
+        """Learn from evaluated candidates (rows of ``candidates``), lower fitness is better."""
+
+    @abstractmethod
+    def state_dict(self) -> dict[str, Any]:
+        """The whole state as JSON-serialisable types (use rng_state for the generator)."""
+
+    @abstractmethod
+    def load_state_dict(self, state: dict[str, Any]) -> None:
+        """Restore what state_dict returned."""
+
+
+def rng_state(rng: np.random.Generator) -> dict[str, Any]:
+    """A numpy Generator's state as plain JSON (big ints are fine in JSON)."""
+    return rng.bit_generator.state
+
+
+def restore_rng(rng: np.random.Generator, state: dict[str, Any]) -> None:
+    """Put a state from rng_state back into a Generator of the same bit generator."""
+    rng.bit_generator.state = state
+
+
+@dataclass(frozen=True)
+class OptimizerInfo:
+    """How a plugin announces an optimizer: its name, what it is, its parameters, a factory.
+
+    ``factory(space, seed, **params)`` receives every declared parameter (defaults filled in,
+    validated) and returns a ready Optimizer.
+    """
+
+    name: str
+    summary: str
+    factory: Callable[..., Optimizer]
+    params: tuple[Param, ...] = ()
+    description: str = ""

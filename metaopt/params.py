@@ -1,0 +1,135 @@
+"""Declared plugin parameters: name, type, default, range, meaning; parsing and validation."""
+
+from __future__ import annotations
+
+import difflib
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass
+from typing import Any
+
+from metaopt.errors import ConfigError
+
+_TYPES: dict[type, str] = {int: "int", float: "float", str: "str", bool: "bool"}
+_TRUE = {"1", "true", "yes", "on"}
+_FALSE = {"0", "false", "no", "off"}
+
+
+@dataclass(frozen=True)
+class Param:
+    """One parameter a plugin accepts.
+
+    ``low``/``high`` bound numbers (inclusive unless ``low_open``/``high_open``), ``choices``
+    restricts strings. ``default`` must itself be valid.
+    """
+
+    name: str
+    type: type
+    default: Any
+    help: str
+    low: float | None = None
+    high: float | None = None
+    low_open: bool = False
+    high_open: bool = False
+    choices: tuple[str, ...] | None = None
+
+    def __post_init__(self) -> None:
+        if self.type not in _TYPES:
+            raise TypeError(f"Param {self.name!r}: type must be one of {list(_TYPES.values())}")
+
+    @property
+    def type_name(self) -> str:
+        """'int', 'float', 'str' or 'bool'."""
+        return _TYPES[self.type]
+
+    def accepted(self) -> str:
+        """Human text of the accepted values, e.g. 'a float in [0, 1]'."""
+        if self.choices:
+            return "one of " + ", ".join(self.choices)
+        if self.type is bool:
+            return "true or false"
+        if self.low is None and self.high is None:
+            return f"any {self.type_name}"
+        left = "(" if self.low_open else "["
+        right = ")" if self.high_open else "]"
+        low = "-inf" if self.low is None else _fmt(self.low)
+        high = "inf" if self.high is None else _fmt(self.high)
+        return f"an {self.type_name} in {left}{low}, {high}{right}".replace("an float", "a float")
+
+    def range_text(self) -> str:
+        """Compact range for tables: '[0, 1]', 'a|b|c' or ''."""
+        if self.choices:
+            return "|".join(self.choices)
+        if self.low is None and self.high is None:
+            return ""
+        return self.accepted().split(" in ", 1)[1]
+
+    def parse(self, text: str, owner: str) -> Any:
+        """Convert command-line text to a valid value, or raise ConfigError."""
+        try:
+            if self.type is bool:
+                lowered = text.strip().lower()
+                if lowered not in _TRUE | _FALSE:
+                    raise ValueError
+                value: Any = lowered in _TRUE
+            elif self.type is int:
+                as_float = float(text)
+                if not as_float.is_integer():
+                    raise ValueError
+                value = int(as_float)
+            else:
+                value = self.type(text)
+        except ValueError:
+            raise ConfigError(
+                f"{owner} parameter {self.name!r}: cannot read {text!r}; expected {self.accepted()}"
+            ) from None
+        return self.validate(value, owner)
+
+    def validate(self, value: Any, owner: str) -> Any:
+        """Check a Python value against type and range; return it normalised."""
+        bad = ConfigError(
+            f"{owner} parameter {self.name!r} = {value!r} is invalid; expected {self.accepted()}"
+        )
+        if self.type is float and isinstance(value, int) and not isinstance(value, bool):
+            value = float(value)
+        if self.type is int and isinstance(value, float) and value.is_integer():
+            value = int(value)
+        if not isinstance(value, self.type) or (self.type is int and isinstance(value, bool)):
+            raise bad
+        if self.choices is not None and value not in self.choices:
+            raise bad
+        if self.type in (int, float):
+            if value != value:  # NaN
+                raise bad
+            if self.low is not None and (value < self.low or (self.low_open and value == self.low)):
+                raise bad
+            if self.high is not None and (
+                value > self.high or (self.high_open and value == self.high)
+            ):
+                raise bad
+        return value
+
+
+def _fmt(number: float) -> str:
+    return f"{number:g}"
+
+
+def suggest(name: str, known: Sequence[str]) -> str:
+    """' Did you mean ...?' for close matches, or ''."""
+    close = difflib.get_close_matches(name, list(known), n=3, cutoff=0.5)
+    return f" Did you mean {' or '.join(repr(c) for c in close)}?" if close else ""
+
+
+def resolve(params: Sequence[Param], given: Mapping[str, Any], owner: str) -> dict[str, Any]:
+    """Defaults overlaid with validated given values; unknown names raise ConfigError."""
+    declared = {p.name: p for p in params}
+    for name in given:
+        if name not in declared:
+            accepted = ", ".join(declared) or "none"
+            raise ConfigError(
+                f"{owner} has no parameter {name!r}.{suggest(name, list(declared))} "
+                f"Accepted: {accepted}"
+            )
+    values = {}
+    for p in params:
+        values[p.name] = p.validate(given[p.name], owner) if p.name in given else p.default
+    return values
