@@ -7,12 +7,15 @@ driven only through PhysicsBackend. Frame: x forward, y left, z up; SI units, an
 
 from __future__ import annotations
 
+import math
 from abc import ABC, abstractmethod
 from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
+
+from metaopt.errors import EvaluationError
 
 Vec3 = tuple[float, float, float]
 
@@ -24,6 +27,40 @@ class Shape:
 
     kind: str
     size: tuple[float, ...]
+
+    def __post_init__(self) -> None:
+        expected = {"box": 3, "sphere": 1, "capsule": 2}
+        if expected.get(self.kind) != len(self.size):
+            raise ValueError(f"bad shape {self.kind!r} with size {self.size}")
+
+    def inertia(self, mass: float) -> Vec3:
+        """Principal moments (Ixx, Iyy, Izz) about the centre of a uniform solid of this shape,
+        with ODE's formulas (so every engine gets the rcssserver3d numbers)."""
+        if self.kind == "box":
+            x, y, z = self.size
+            return (mass * (y * y + z * z) / 12, mass * (x * x + z * z) / 12,
+                    mass * (x * x + y * y) / 12)  # fmt: skip
+        if self.kind == "sphere":
+            moment = 0.4 * mass * self.size[0] ** 2
+            return (moment, moment, moment)
+        r, length = self.size
+        cylinder = math.pi * r * r * length
+        spheres = 4.0 / 3.0 * math.pi * r**3
+        m_cyl = mass * cylinder / (cylinder + spheres)
+        m_sph = mass - m_cyl
+        across = m_cyl * (0.25 * r * r + length * length / 12) + m_sph * (
+            0.4 * r * r + 0.375 * r * length + 0.25 * length * length
+        )
+        return (across, across, (0.5 * m_cyl + 0.4 * m_sph) * r * r)
+
+    @property
+    def half_height(self) -> float:
+        """Half the extent along z (for heights and bounding boxes)."""
+        if self.kind == "box":
+            return self.size[2] / 2
+        if self.kind == "sphere":
+            return self.size[0]
+        return self.size[0] + self.size[1] / 2
 
 
 @dataclass(frozen=True)
@@ -38,11 +75,17 @@ class Body:
     center: Vec3
     collides: bool
 
+    @property
+    def inertia(self) -> Vec3:
+        """Principal moments about the centre, kg·m² (axes of the construction pose)."""
+        return self.shape.inertia(self.mass)
+
 
 @dataclass(frozen=True)
 class Hinge:
     """A revolute joint from ``parent`` to ``child`` about ``axis`` through ``anchor``
-    (construction pose, root frame); angle 0 is the construction pose."""
+    (construction pose, root frame); angle 0 is the construction pose, ``rest`` the angle the
+    joint starts at and is held at while nothing else drives it."""
 
     name: str
     parent: str
@@ -51,11 +94,15 @@ class Hinge:
     axis: Vec3
     lower: float
     upper: float
+    rest: float = 0.0
 
 
 @dataclass(frozen=True)
 class RobotDescription:
-    """A floating-base robot: bodies (root first, parents before children) and hinges."""
+    """A floating-base robot: bodies (root first, parents before children) and hinges.
+
+    Every non-root body is the child of exactly one hinge (a tree of hinges).
+    """
 
     name: str
     bodies: tuple[Body, ...]
@@ -64,6 +111,27 @@ class RobotDescription:
     contact_bodies: tuple[str, ...]
     #: Height of the root body's centre when placed at reset.
     start_height: float
+
+    def __post_init__(self) -> None:
+        names = [b.name for b in self.bodies]
+        if len(set(names)) != len(names) or self.bodies[0].parent is not None:
+            raise ValueError("bodies must have unique names, root first")
+        seen = {names[0]}
+        for body in self.bodies[1:]:
+            if body.parent not in seen:
+                raise ValueError(f"body {body.name!r} comes before its parent {body.parent!r}")
+            seen.add(body.name)
+        children = sorted(h.child for h in self.hinges)
+        if children != sorted(names[1:]):
+            raise ValueError("every non-root body needs exactly one hinge to its parent")
+        for h in self.hinges:
+            if self.body(h.child).parent != h.parent or not h.lower <= h.rest <= h.upper:
+                raise ValueError(f"hinge {h.name!r}: wrong parent or rest angle outside limits")
+
+    @property
+    def root(self) -> Body:
+        """The free-floating root body (the torso)."""
+        return self.bodies[0]
 
     @property
     def joint_names(self) -> tuple[str, ...]:
@@ -75,46 +143,93 @@ class RobotDescription:
         """Sum of body masses, kg."""
         return sum(b.mass for b in self.bodies)
 
+    @property
+    def rest_angles(self) -> np.ndarray:
+        """Every joint's rest angle, radians, in joint order."""
+        return np.array([h.rest for h in self.hinges], dtype=float)
+
+    def body(self, name: str) -> Body:
+        """The body called name."""
+        for b in self.bodies:
+            if b.name == name:
+                return b
+        raise KeyError(name)
+
+    def joint_index(self, name: str) -> int:
+        """Position of the hinge called name in every joint vector."""
+        return self.joint_names.index(name)
+
+    def hinge_of(self, body: str) -> Hinge:
+        """The hinge whose child is body (the joint that carries it)."""
+        for h in self.hinges:
+            if h.child == body:
+                return h
+        raise KeyError(body)
+
 
 @dataclass(frozen=True)
 class PhysicsSettings:
-    """Engine-independent simulation settings (documented defaults in docs/nao-walk.md)."""
+    """Engine-independent simulation settings (documented defaults in docs/nao-walk.md).
+
+    ``substeps`` 0 means the backend's own default (BackendInfo.default_substeps).
+    """
 
     control_period: float = 0.02
-    substeps: int = 10
+    substeps: int = 0
     servo_gain: float = 10.0
     max_joint_speed: float = 6.1395
     max_joint_torque: float = 10.0
     friction: float = 1.0
 
-    @property
-    def timestep(self) -> float:
-        """Physics step = control_period / substeps."""
-        return self.control_period / self.substeps
+    def timestep(self, default_substeps: int) -> float:
+        """Physics step = control_period / substeps (the backend's default when 0)."""
+        return self.control_period / (self.substeps or default_substeps)
+
+
+def servo_velocities(
+    targets: np.ndarray, angles: np.ndarray, settings: PhysicsSettings, out: np.ndarray
+) -> np.ndarray:
+    """The rcssserver3d agent's position loop, written into ``out``: target velocity =
+    servo_gain * (target - angle), clamped to ±max_joint_speed. Raises EvaluationError when the
+    targets are not finite numbers (a diverging controller)."""
+    np.subtract(targets, angles, out=out)
+    out *= settings.servo_gain
+    np.clip(out, -settings.max_joint_speed, settings.max_joint_speed, out=out)
+    if not math.isfinite(out.sum()):
+        raise EvaluationError("joint targets are not finite numbers (the controller diverged)")
+    return out
 
 
 class PhysicsBackend(ABC):
     """One simulated robot on a flat ground plane, advanced one control period at a time.
 
     Joint vectors follow ``RobotDescription.joint_names``. Joints are velocity servos like
-    rcssserver3d's: target velocity = servo_gain * (target - angle), clamped to
-    ±max_joint_speed, torque at most max_joint_torque.
+    rcssserver3d's (see servo_velocities), torque at most max_joint_torque; the velocity
+    command is computed once per control period, as the server's agent does.
     """
 
     #: True when restore_state followed by the same steps reproduces a fresh run bit for bit.
     restores_exactly: bool = False
 
+    def __init__(self, robot: RobotDescription, settings: PhysicsSettings) -> None:
+        self.robot = robot
+        self.settings = settings
+
     @abstractmethod
     def reset(self) -> None:
-        """Construction pose (all joints 0) with the root at start_height, velocities zero, t=0."""
+        """Rest pose (every joint at its rest angle) with the root upright at start_height,
+        velocities zero, t = 0."""
 
     @abstractmethod
     def step(self, joint_targets: np.ndarray) -> None:
-        """Servo every joint toward joint_targets (radians) for one control period."""
+        """Servo every joint toward joint_targets (radians) for one control period.
+
+        Raises EvaluationError when the simulation becomes unstable (non-finite state).
+        """
 
     @abstractmethod
     def joint_angles(self) -> np.ndarray:
-        """Measured joint angles, radians."""
+        """Measured joint angles, radians (may be a live read-only view: copy to keep)."""
 
     @abstractmethod
     def root_position(self) -> np.ndarray:
@@ -146,8 +261,13 @@ class PhysicsBackend(ABC):
 
 @dataclass(frozen=True)
 class BackendInfo:
-    """How a plugin announces a physics engine: ``factory(robot, settings) -> PhysicsBackend``."""
+    """How a plugin announces a physics engine: ``factory(robot, settings) -> PhysicsBackend``.
+
+    ``default_substeps`` is the number of physics steps per control period the engine uses
+    when PhysicsSettings.substeps is 0.
+    """
 
     name: str
     summary: str
     factory: Callable[[RobotDescription, PhysicsSettings], PhysicsBackend]
+    default_substeps: int = 10

@@ -36,21 +36,34 @@ class Registry:
     def __init__(self, manager: pluggy.PluginManager, sources: dict[str, PluginSource]) -> None:
         self.manager = manager
         self.sources = sources
-        self.optimizers = self._collect(manager.hook.metaopt_optimizers(), "optimizer")
-        self.problems = self._collect(manager.hook.metaopt_problems(), "problem")
+        #: (kind, name) -> entry-point name of the plugin that announced it.
+        self.provided_by: dict[tuple[str, str], str] = {}
+        self.optimizers = self._collect(manager.hook.metaopt_optimizers, "optimizer")
+        self.problems = self._collect(manager.hook.metaopt_problems, "problem")
         self.physics_backends = self._collect(
-            manager.hook.metaopt_physics_backends(), "physics backend"
+            manager.hook.metaopt_physics_backends, "physics backend"
         )
 
-    @staticmethod
-    def _collect(results: Iterable[list], kind: str) -> dict[str, Any]:
+    def _collect(self, hook: pluggy.HookCaller, kind: str) -> dict[str, Any]:
         found: dict[str, Any] = {}
-        for infos in results:
-            for info in infos:
+        for implementation in hook.get_hookimpls():
+            for info in implementation.function():
                 if info.name in found:
-                    raise ConfigError(f"two plugins both provide the {kind} {info.name!r}")
+                    other = self.provided_by[(kind, info.name)]
+                    raise ConfigError(
+                        f"plugins {other!r} and {implementation.plugin_name!r} both provide the "
+                        f"{kind} {info.name!r}; uninstall one or exclude it with "
+                        f"{LOAD_PLUGINS_ENV}"
+                    )
                 found[info.name] = info
+                self.provided_by[(kind, info.name)] = implementation.plugin_name
         return dict(sorted(found.items()))
+
+    def source(self, kind: str, name: str) -> str:
+        """The distribution that provides a plugin, for `metaopt list`."""
+        plugin_name = self.provided_by.get((kind, name), "?")
+        source = self.sources.get(plugin_name)
+        return source.distribution if source else plugin_name
 
     def optimizer(self, name: str):
         """The OptimizerInfo called name, or a ConfigError with close matches."""
@@ -84,7 +97,14 @@ def build_manager(extra_modules: Iterable[ModuleType] = ()) -> tuple[pluggy.Plug
             continue
         if manager.has_plugin(entry_point.name):
             continue
-        module = entry_point.load()
+        try:
+            module = entry_point.load()
+        except Exception as error:  # a broken plugin must say which one it is
+            raise ConfigError(
+                f"plugin {entry_point.name!r} ({entry_point.value}) failed to load: "
+                f"{type(error).__name__}: {error}. Fix or uninstall it, or leave it out with "
+                f"{LOAD_PLUGINS_ENV}=<names of the plugins to load>"
+            ) from None
         manager.register(module, name=entry_point.name)
         distribution = entry_point.dist.name if entry_point.dist else "?"
         sources[entry_point.name] = PluginSource(entry_point.name, entry_point.value, distribution)

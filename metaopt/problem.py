@@ -56,6 +56,7 @@ class ProblemInfo:
     """How a plugin announces a problem: its name, what it is, its parameters, a factory.
 
     ``factory(**params)`` receives every declared parameter (defaults filled in, validated).
+    ``default_budget`` is the number of evaluations a run gets when the user names none.
     """
 
     name: str
@@ -63,3 +64,4 @@ class ProblemInfo:
     factory: Callable[..., Problem]
     params: tuple[Param, ...] = ()
     description: str = ""
+    default_budget: int = 1000

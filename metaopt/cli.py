@@ -1,0 +1,185 @@
+"""The ``metaopt`` command line: list, run, runs, show, export."""
+
+from __future__ import annotations
+
+import secrets
+import sys
+from pathlib import Path
+
+import click
+from rich.console import Console
+
+from metaopt import display
+from metaopt.errors import MetaoptError
+from metaopt.export import FORMATS, export_run
+from metaopt.plugins import registry
+from metaopt.run_loop import RunSpec, run
+from metaopt.settings import split_settings
+from metaopt.store import DEFAULT_DB, RunStore
+
+console = Console()
+errors = Console(stderr=True)
+
+db_option = click.option(
+    "--db",
+    "db_path",
+    default=DEFAULT_DB,
+    show_default=True,
+    type=click.Path(dir_okay=False),
+    help="SQLite run store.",
+)
+
+
+class MetaoptGroup(click.Group):
+    """Turns every MetaoptError into one 'Error: ...' line and exit code 2."""
+
+    def invoke(self, ctx: click.Context):
+        try:
+            return super().invoke(ctx)
+        except MetaoptError as error:
+            errors.print(f"[bold red]Error:[/] {error}", highlight=False, soft_wrap=True)
+            sys.exit(2)
+
+
+@click.group(cls=MetaoptGroup)
+@click.version_option(package_name="metaopt")
+def main() -> None:
+    """metaopt: metaheuristic optimization with plugins."""
+
+
+@main.command("list")
+@click.argument("name", required=False)
+def list_plugins(name: str | None) -> None:
+    """Show the installed optimizers, problems and physics engines (or one of them in full)."""
+    plugins = registry()
+    if name is None:
+        for title, kind, table in (
+            ("optimizers", "optimizer", plugins.optimizers),
+            ("problems", "problem", plugins.problems),
+            ("physics backends", "physics backend", plugins.physics_backends),
+        ):
+            sources = [plugins.source(kind, name) for name in table]
+            console.print(display.plugin_overview(title, list(table.values()), sources))
+        console.print("[dim]metaopt list NAME shows one in full with every parameter.[/]")
+        return
+    for kind, table in (("optimizer", plugins.optimizers), ("problem", plugins.problems)):
+        if name in table:
+            info = table[name]
+            console.print(f"[bold cyan]{info.name}[/] ({kind}): {info.summary}")
+            if info.description:
+                console.print(info.description.strip())
+            if kind == "problem":
+                console.print(f"default budget: {info.default_budget} evaluations")
+            console.print(display.params_table("parameters", info.params))
+            return
+    if name in plugins.physics_backends:
+        info = plugins.physics_backends[name]
+        console.print(f"[bold cyan]{info.name}[/] (physics backend): {info.summary}")
+        return
+    plugins.optimizer(name)  # raises with close matches among optimizers
+    raise AssertionError("unreachable")
+
+
+@main.command("run")
+@click.option("--optimizer", "-o", "optimizer_name", required=True, help="Optimizer name.")
+@click.option("--problem", "-p", "problem_name", required=True, help="Problem name.")
+@click.option("--budget", type=int, default=None, help="Evaluations [problem's default].")
+@click.option("--seed", type=int, default=None, help="Run seed [random, printed].")
+@click.option(
+    "--set",
+    "settings",
+    multiple=True,
+    metavar="NAME=VALUE",
+    help="A plugin parameter; qualify as optimizer.NAME or problem.NAME when both have it.",
+)
+@db_option
+def run_command(
+    optimizer_name: str,
+    problem_name: str,
+    budget: int | None,
+    seed: int | None,
+    settings: tuple[str, ...],
+    db_path: str,
+) -> None:
+    """Run an optimizer on a problem, storing every evaluation."""
+    plugins = registry()
+    optimizer_info = plugins.optimizer(optimizer_name)
+    problem_info = plugins.problem(problem_name)
+    optimizer_params, problem_params = split_settings(settings, optimizer_info, problem_info)
+    spec = RunSpec(
+        optimizer=optimizer_name,
+        problem=problem_name,
+        budget=problem_info.default_budget if budget is None else budget,
+        seed=secrets.randbelow(2**31) if seed is None else seed,
+        optimizer_params=optimizer_params,
+        problem_params=problem_params,
+    )
+    if spec.budget < 1:
+        raise click.BadParameter(f"must be at least 1, got {spec.budget}", param_hint="--budget")
+    with RunStore(db_path) as store:
+        label = f"{optimizer_name} on {problem_name}"
+        try:
+            with display.RichProgress(console, label) as progress:
+                result = run(spec, optimizer_info, problem_info, store, progress)
+        except KeyboardInterrupt:
+            errors.print(
+                f"Interrupted. Every finished evaluation is stored in {db_path}; "
+                "see it with: metaopt runs --db " + str(db_path)
+            )
+            sys.exit(130)
+        console.print(display.result_table(result, str(db_path), spec.seed))
+        if result.failed:
+            console.print(
+                f"[yellow]{result.failed} evaluation(s) failed; their errors are stored "
+                f"(metaopt export {result.run_id} --format csv).[/]"
+            )
+
+
+@main.command("runs")
+@db_option
+def runs_command(db_path: str) -> None:
+    """List the runs in a store."""
+    _require_store(db_path)
+    with RunStore(db_path) as store:
+        runs = store.runs()
+        counts = {r.id: store.evaluation_counts(r.id) for r in runs}
+        best = {}
+        for r in runs:
+            record = store.best_evaluation(r)
+            best[r.id] = None if record is None else record.fitness
+        console.print(display.runs_table(runs, counts, best))
+
+
+@main.command("show")
+@click.argument("run_id")
+@db_option
+def show_command(run_id: str, db_path: str) -> None:
+    """Show everything stored about one run."""
+    _require_store(db_path)
+    with RunStore(db_path) as store:
+        record = store.run(run_id)
+        console.print(
+            display.run_detail(record, store.evaluation_counts(record.id), store.best_evaluation(record))
+        )
+
+
+@main.command("export")
+@click.argument("run_id")
+@click.option("--format", "fmt", type=click.Choice(FORMATS), default="csv", show_default=True)
+@click.option("--output", type=click.Path(dir_okay=False), default=None, help="File [stdout].")
+@db_option
+def export_command(run_id: str, fmt: str, output: str | None, db_path: str) -> None:
+    """Write a run's evaluations as CSV or JSON."""
+    _require_store(db_path)
+    with RunStore(db_path) as store:
+        if output is None:
+            export_run(store, run_id, fmt, sys.stdout)
+        else:
+            with open(output, "w", newline="") as handle:
+                count = export_run(store, run_id, fmt, handle)
+            errors.print(f"wrote {count} evaluations to {output}")
+
+
+def _require_store(db_path: str) -> None:
+    if not Path(db_path).exists():
+        raise MetaoptError(f"no run store at {db_path}; run `metaopt run` first or pass --db PATH")

@@ -1,0 +1,173 @@
+"""Everything metaopt shows in the terminal: plugin tables, the progress bar, result tables."""
+
+from __future__ import annotations
+
+import math
+import time
+from collections.abc import Sequence
+
+from rich.console import Console
+from rich.progress import (
+    BarColumn,
+    MofNCompleteColumn,
+    Progress,
+    TextColumn,
+    TimeElapsedColumn,
+    TimeRemainingColumn,
+)
+from rich.table import Table
+
+from metaopt.params import Param
+from metaopt.run_loop import RunResult
+from metaopt.store import EvaluationRecord, RunRecord
+
+PROGRESS_REFRESH = 0.1
+
+
+def format_number(value: float | None) -> str:
+    """Compact, precise enough for fitness values and parameters."""
+    if value is None:
+        return "-"
+    if isinstance(value, float) and not math.isfinite(value):
+        return str(value)
+    return f"{value:.6g}"
+
+
+def params_table(title: str, params: Sequence[Param]) -> Table:
+    """A table of declared parameters: name, type, default, range, meaning."""
+    table = Table(title=title, title_justify="left", show_lines=False)
+    for column in ("parameter", "type", "default", "range", "meaning"):
+        table.add_column(column, overflow="fold")
+    for p in params:
+        table.add_row(p.name, p.type_name, str(p.default), p.range_text(), p.help)
+    return table
+
+
+def plugin_overview(kind: str, infos: Sequence, sources: Sequence[str]) -> Table:
+    """One row per plugin of a kind: name, summary, parameter names, where it comes from."""
+    table = Table(title=kind, title_justify="left")
+    table.add_column("name", style="bold cyan", no_wrap=True)
+    table.add_column("summary")
+    table.add_column("parameters (name=default)", overflow="fold")
+    table.add_column("from", style="dim")
+    for info, source in zip(infos, sources):
+        params = ", ".join(f"{p.name}={p.default}" for p in getattr(info, "params", ()))
+        table.add_row(info.name, info.summary, params or "-", source)
+    return table
+
+
+class RichProgress:
+    """The run loop's progress observer: a rich bar with evaluations, best so far, rate, ETA."""
+
+    def __init__(self, console: Console, label: str) -> None:
+        self._bar = Progress(
+            TextColumn("[bold]{task.description}"),
+            BarColumn(),
+            MofNCompleteColumn(),
+            TextColumn("best {task.fields[best]}"),
+            TextColumn("{task.fields[rate]} eval/s"),
+            TimeElapsedColumn(),
+            TextColumn("ETA"),
+            TimeRemainingColumn(),
+            console=console,
+            transient=False,
+        )
+        self._label = label
+        self._task = None
+        self._last_refresh = 0.0
+        self._started = 0.0
+        self._first_done = 0
+
+    def __enter__(self) -> RichProgress:
+        self._bar.__enter__()
+        return self
+
+    def __exit__(self, *exc_info: object) -> None:
+        self._bar.__exit__(*exc_info)
+
+    def start(self, total: int, done: int) -> None:
+        """Create the bar."""
+        self._task = self._bar.add_task(self._label, total=total, completed=done, best="-", rate="-")
+        self._started = time.perf_counter()
+        self._first_done = done
+
+    def update(self, done: int, best: float | None) -> None:
+        """Refresh at most every PROGRESS_REFRESH seconds (cheap evaluations come in millions)."""
+        now = time.perf_counter()
+        if now - self._last_refresh < PROGRESS_REFRESH and done < self._bar.tasks[0].total:
+            return
+        self._last_refresh = now
+        elapsed = max(now - self._started, 1e-9)
+        rate = (done - self._first_done) / elapsed
+        self._bar.update(self._task, completed=done, best=format_number(best), rate=f"{rate:,.0f}")
+
+
+def result_table(result: RunResult, db_path: str, seed: int) -> Table:
+    """The summary printed after a run."""
+    table = Table(title=f"Run {result.run_id} ({result.status})", title_justify="left")
+    table.add_column("", style="bold")
+    table.add_column("value")
+    table.add_row("best fitness", format_number(result.best_fitness))
+    for name in _shown_metrics(result.best_metrics, result.key_metrics):
+        table.add_row(f"  {name}", format_number(result.best_metrics[name]))
+    if result.best_x is not None:
+        for name, value in zip(result.names, result.best_x):
+            table.add_row(f"  {name}", format_number(float(value)))
+    table.add_row("evaluations", f"{result.evaluations} ({result.failed} failed)")
+    table.add_row("wall time", f"{result.wall_time:.2f} s")
+    table.add_row("seed", str(seed))
+    table.add_row("run id", f"{result.run_id}  (in {db_path})")
+    return table
+
+
+def _shown_metrics(metrics: dict[str, float], key_metrics: Sequence[str]) -> list[str]:
+    keys = [k for k in key_metrics if k in metrics]
+    return keys + [k for k in metrics if k not in keys]
+
+
+def runs_table(runs: Sequence[RunRecord], counts: dict[int, tuple[int, int]], best) -> Table:
+    """`metaopt runs`: one row per run."""
+    table = Table(title="runs", title_justify="left")
+    for column in ("id", "optimizer", "problem", "seed", "evals", "failed", "best", "status"):
+        table.add_column(column)
+    table.add_column("started", style="dim")
+    for run in runs:
+        total, failed = counts[run.id]
+        table.add_row(
+            str(run.id),
+            run.optimizer,
+            run.problem,
+            str(run.seed),
+            f"{total}/{run.budget}",
+            str(failed),
+            format_number(best[run.id]),
+            run.status,
+            run.started_at,
+        )
+    return table
+
+
+def run_detail(run: RunRecord, counts: tuple[int, int], best: EvaluationRecord | None) -> Table:
+    """`metaopt show RUN`: everything stored about one run."""
+    table = Table(title=f"run {run.id}", title_justify="left", show_header=False)
+    table.add_column("", style="bold")
+    table.add_column("")
+    table.add_row("status", run.status + (f" ({run.message})" if run.message else ""))
+    table.add_row("optimizer", run.optimizer)
+    for name, value in run.optimizer_params.items():
+        table.add_row(f"  {name}", str(value))
+    table.add_row("problem", f"{run.problem} ({run.sense})")
+    for name, value in run.problem_params.items():
+        table.add_row(f"  {name}", str(value))
+    table.add_row("seed", str(run.seed))
+    table.add_row("evaluations", f"{counts[0]} of {run.budget} ({counts[1]} failed)")
+    table.add_row("started / ended", f"{run.started_at} / {run.ended_at or '-'}")
+    table.add_row("wall time", "-" if run.wall_time is None else f"{run.wall_time:.2f} s")
+    if best is not None:
+        table.add_row("best fitness", f"{format_number(best.fitness)} (evaluation {best.index})")
+        for name, value in best.metrics.items():
+            table.add_row(f"  {name}", format_number(value))
+        for variable, value in zip(run.space, best.x):
+            table.add_row(f"  {variable['name']}", format_number(float(value)))
+    table.add_row("versions", ", ".join(f"{k} {v}" for k, v in run.versions.items()))
+    return table

@@ -1,0 +1,73 @@
+"""Writing a run's evaluations as CSV or JSON."""
+
+from __future__ import annotations
+
+import csv
+import json
+from typing import TextIO
+
+from metaopt.errors import ConfigError
+from metaopt.store import RunStore
+
+FORMATS = ("csv", "json")
+
+
+def export_run(store: RunStore, run_id: int | str, fmt: str, out: TextIO) -> int:
+    """Write every evaluation of a run to ``out``; return how many were written."""
+    if fmt not in FORMATS:
+        raise ConfigError(f"unknown export format {fmt!r}; accepted: {', '.join(FORMATS)}")
+    run = store.run(run_id)
+    names = [v["name"] for v in run.space]
+    evaluations = list(store.evaluations(run.id))
+    if fmt == "json":
+        json.dump(
+            {
+                "run": {
+                    "id": run.id,
+                    "optimizer": run.optimizer,
+                    "optimizer_params": run.optimizer_params,
+                    "problem": run.problem,
+                    "problem_params": run.problem_params,
+                    "seed": run.seed,
+                    "budget": run.budget,
+                    "sense": run.sense,
+                    "status": run.status,
+                    "space": run.space,
+                    "versions": run.versions,
+                },
+                "evaluations": [
+                    {
+                        "index": e.index,
+                        "status": e.status,
+                        "fitness": e.fitness,
+                        "x": dict(zip(names, e.x.tolist())),
+                        "metrics": e.metrics,
+                        "error": e.error,
+                        "seed": e.seed,
+                        "wall_time": e.wall_time,
+                    }
+                    for e in evaluations
+                ],
+            },
+            out,
+            indent=1,
+        )
+        out.write("\n")
+        return len(evaluations)
+    metric_names = sorted({name for e in evaluations for name in e.metrics})
+    writer = csv.writer(out, lineterminator="\n")
+    writer.writerow(["index", "status", "fitness", *names, *metric_names, "seed", "wall_time", "error"])
+    for e in evaluations:
+        writer.writerow(
+            [
+                e.index,
+                e.status,
+                "" if e.fitness is None else repr(e.fitness),
+                *(repr(v) for v in e.x.tolist()),
+                *(e.metrics.get(m, "") for m in metric_names),
+                e.seed,
+                f"{e.wall_time:.6g}",
+                e.error or "",
+            ]
+        )
+    return len(evaluations)

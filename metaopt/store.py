@@ -1,0 +1,364 @@
+"""The run store: every run and every evaluation in an embedded SQLite database.
+
+Evaluations are queued by the run loop and committed in small transactions by a background
+flusher, so cheap evaluations cost microseconds while none waits uncommitted for more than
+``FLUSH_INTERVAL`` seconds. WAL mode lets other processes read (and write) while a run goes on.
+"""
+
+from __future__ import annotations
+
+import json
+import sqlite3
+import threading
+import time
+from collections.abc import Iterator
+from dataclasses import dataclass
+from datetime import datetime, timezone
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from metaopt.errors import StoreError
+
+FORMAT_NAME = "metaopt-run-store"
+SCHEMA_VERSION = 1
+FLUSH_INTERVAL = 0.5
+DEFAULT_DB = "metaopt.db"
+
+_SCHEMA = """
+CREATE TABLE IF NOT EXISTS meta (key TEXT PRIMARY KEY, value TEXT NOT NULL);
+CREATE TABLE IF NOT EXISTS runs (
+    id INTEGER PRIMARY KEY AUTOINCREMENT,
+    optimizer TEXT NOT NULL,
+    optimizer_params TEXT NOT NULL,
+    problem TEXT NOT NULL,
+    problem_params TEXT NOT NULL,
+    seed INTEGER NOT NULL,
+    budget INTEGER NOT NULL,
+    sense TEXT NOT NULL,
+    space TEXT NOT NULL,
+    versions TEXT NOT NULL,
+    started_at TEXT NOT NULL,
+    ended_at TEXT,
+    status TEXT NOT NULL,
+    message TEXT,
+    wall_time REAL,
+    optimizer_state TEXT,
+    state_evaluations INTEGER
+);
+CREATE TABLE IF NOT EXISTS evaluations (
+    run_id INTEGER NOT NULL REFERENCES runs(id),
+    idx INTEGER NOT NULL,
+    x BLOB NOT NULL,
+    fitness REAL,
+    metrics TEXT,
+    status TEXT NOT NULL,
+    error TEXT,
+    seed INTEGER NOT NULL,
+    wall_time REAL NOT NULL,
+    finished_at REAL NOT NULL,
+    PRIMARY KEY (run_id, idx)
+);
+"""
+
+RUN_STATUSES = ("running", "finished", "interrupted", "failed")
+
+
+@dataclass
+class RunRecord:
+    """One row of the runs table, JSON columns decoded."""
+
+    id: int
+    optimizer: str
+    optimizer_params: dict[str, Any]
+    problem: str
+    problem_params: dict[str, Any]
+    seed: int
+    budget: int
+    sense: str
+    space: list[dict]
+    versions: dict[str, str]
+    started_at: str
+    ended_at: str | None
+    status: str
+    message: str | None
+    wall_time: float | None
+    optimizer_state: dict | None
+    state_evaluations: int | None
+
+
+@dataclass
+class EvaluationRecord:
+    """One stored evaluation. ``fitness`` is None when it failed."""
+
+    index: int
+    x: np.ndarray
+    fitness: float | None
+    metrics: dict[str, float]
+    status: str
+    error: str | None
+    seed: int
+    wall_time: float
+    finished_at: float
+
+
+def _now() -> str:
+    return datetime.now(timezone.utc).isoformat(timespec="seconds")
+
+
+class RunStore:
+    """A SQLite run store at ``path`` (created if missing; refused if it is not a metaopt store)."""
+
+    def __init__(self, path: str | Path = DEFAULT_DB) -> None:
+        self.path = Path(path)
+        if self.path.is_dir():
+            raise StoreError(f"--db {self.path} is a directory; give a database file path")
+        if self.path.exists() and self.path.stat().st_size > 0:
+            with self.path.open("rb") as handle:
+                if handle.read(16) != b"SQLite format 3\x00":
+                    raise StoreError(
+                        f"{self.path} is not a SQLite database; give a metaopt store "
+                        "or a new file name"
+                    )
+        try:
+            self._connection = sqlite3.connect(
+                self.path, timeout=30.0, check_same_thread=False, isolation_level=None
+            )
+            self._connection.execute("PRAGMA journal_mode=WAL")
+            self._connection.execute("PRAGMA synchronous=NORMAL")
+            self._check_or_create_schema()
+        except sqlite3.DatabaseError as error:
+            raise StoreError(f"cannot use {self.path} as a run store: {error}") from None
+        self._lock = threading.Lock()
+        self._pending: list[tuple] = []
+        self._stop = threading.Event()
+        self._flusher: threading.Thread | None = None
+
+    def _check_or_create_schema(self) -> None:
+        tables = {
+            row[0]
+            for row in self._connection.execute("SELECT name FROM sqlite_master WHERE type='table'")
+        }
+        if tables and "meta" not in tables:
+            raise StoreError(
+                f"{self.path} is a SQLite database of something else (tables: "
+                f"{', '.join(sorted(tables))}); give a metaopt store or a new file name"
+            )
+        if not tables:
+            self._connection.executescript(
+                f"BEGIN IMMEDIATE; {_SCHEMA} INSERT INTO meta VALUES ('format', '{FORMAT_NAME}'); "
+                f"INSERT INTO meta VALUES ('schema_version', '{SCHEMA_VERSION}'); COMMIT;"
+            )
+            return
+        meta = dict(self._connection.execute("SELECT key, value FROM meta"))
+        if meta.get("format") != FORMAT_NAME:
+            raise StoreError(f"{self.path} is not a metaopt run store")
+        if int(meta.get("schema_version", "0")) > SCHEMA_VERSION:
+            raise StoreError(
+                f"{self.path} was written by a newer metaopt (schema "
+                f"{meta['schema_version']}); upgrade metaopt to read it"
+            )
+
+    def _transaction(self):
+        connection = self._connection
+
+        class _Transaction:
+            def __enter__(self):
+                connection.execute("BEGIN IMMEDIATE")
+
+            def __exit__(self, kind, value, traceback):
+                connection.execute("COMMIT" if kind is None else "ROLLBACK")
+
+        return _Transaction()
+
+    # -- writing ---------------------------------------------------------------------------
+
+    def create_run(
+        self,
+        *,
+        optimizer: str,
+        optimizer_params: dict[str, Any],
+        problem: str,
+        problem_params: dict[str, Any],
+        seed: int,
+        budget: int,
+        sense: str,
+        space: list[dict],
+        versions: dict[str, str],
+    ) -> int:
+        """Insert a new run with status 'running' and return its id."""
+        with self._lock, self._transaction():
+            cursor = self._connection.execute(
+                "INSERT INTO runs (optimizer, optimizer_params, problem, problem_params, seed, "
+                "budget, sense, space, versions, started_at, status) "
+                "VALUES (?, ?, ?, ?, ?, ?, ?, ?, ?, ?, 'running')",
+                (
+                    optimizer,
+                    json.dumps(optimizer_params),
+                    problem,
+                    json.dumps(problem_params),
+                    seed,
+                    budget,
+                    sense,
+                    json.dumps(space),
+                    json.dumps(versions),
+                    _now(),
+                ),
+            )
+            return int(cursor.lastrowid)
+
+    def add_evaluation(
+        self,
+        run_id: int,
+        index: int,
+        x: np.ndarray,
+        fitness: float | None,
+        metrics: dict[str, float] | None,
+        error: str | None,
+        seed: int,
+        wall_time: float,
+    ) -> None:
+        """Queue one finished evaluation; the flusher commits it within FLUSH_INTERVAL."""
+        row = (
+            run_id,
+            index,
+            np.asarray(x, dtype="<f8").tobytes(),
+            fitness,
+            json.dumps(metrics) if metrics else None,
+            "ok" if error is None else "failed",
+            error,
+            seed,
+            wall_time,
+            time.time(),
+        )
+        with self._lock:
+            self._pending.append(row)
+        if self._flusher is None:
+            self._start_flusher()
+
+    def _start_flusher(self) -> None:
+        self._stop.clear()
+        self._flusher = threading.Thread(target=self._flush_loop, name="metaopt-store", daemon=True)
+        self._flusher.start()
+
+    def _flush_loop(self) -> None:
+        while not self._stop.wait(FLUSH_INTERVAL / 2):
+            self.flush()
+
+    def flush(self, checkpoint: tuple[int, int, dict] | None = None) -> None:
+        """Commit queued evaluations now; optionally with (run_id, n_evaluations, state)."""
+        with self._lock:
+            rows, self._pending = self._pending, []
+            if not rows and checkpoint is None:
+                return
+            with self._transaction():
+                self._connection.executemany(
+                    "INSERT INTO evaluations VALUES (?, ?, ?, ?, ?, ?, ?, ?, ?, ?)", rows
+                )
+                if checkpoint is not None:
+                    run_id, n_evaluations, state = checkpoint
+                    self._connection.execute(
+                        "UPDATE runs SET optimizer_state = ?, state_evaluations = ? WHERE id = ?",
+                        (json.dumps(state), n_evaluations, run_id),
+                    )
+
+    def finish_run(
+        self, run_id: int, status: str, wall_time: float, message: str | None = None
+    ) -> None:
+        """Flush, then record the run's end, status and an optional message."""
+        if status not in RUN_STATUSES:
+            raise ValueError(f"unknown run status {status!r}")
+        self.flush()
+        with self._lock, self._transaction():
+            self._connection.execute(
+                "UPDATE runs SET status = ?, ended_at = ?, wall_time = ?, message = ? WHERE id = ?",
+                (status, _now(), wall_time, message, run_id),
+            )
+
+    def close(self) -> None:
+        """Stop the flusher, commit what is queued and close the database."""
+        if self._flusher is not None:
+            self._stop.set()
+            self._flusher.join()
+            self._flusher = None
+        self.flush()
+        self._connection.close()
+
+    def __enter__(self) -> RunStore:
+        return self
+
+    def __exit__(self, *exc_info: object) -> None:
+        self.close()
+
+    # -- reading ---------------------------------------------------------------------------
+
+    def runs(self) -> list[RunRecord]:
+        """Every run, oldest first."""
+        cursor = self._connection.execute("SELECT * FROM runs ORDER BY id")
+        return [self._run_record(cursor, row) for row in cursor.fetchall()]
+
+    def run(self, run_id: int | str) -> RunRecord:
+        """One run by id, or StoreError naming the ids that exist."""
+        try:
+            run_id = int(run_id)
+        except ValueError:
+            raise StoreError(f"run id must be a number, got {run_id!r}") from None
+        cursor = self._connection.execute("SELECT * FROM runs WHERE id = ?", (run_id,))
+        row = cursor.fetchone()
+        if row is None:
+            ids = [str(r[0]) for r in self._connection.execute("SELECT id FROM runs ORDER BY id")]
+            known = ", ".join(ids[-10:]) if ids else "none yet"
+            raise StoreError(f"no run {run_id} in {self.path}; runs there: {known}")
+        return self._run_record(cursor, row)
+
+    @staticmethod
+    def _run_record(cursor: sqlite3.Cursor, row: tuple) -> RunRecord:
+        data = dict(zip([c[0] for c in cursor.description], row))
+        for key in ("optimizer_params", "problem_params", "space", "versions", "optimizer_state"):
+            if data[key] is not None:
+                data[key] = json.loads(data[key])
+        return RunRecord(**data)
+
+    def evaluations(
+        self, run_id: int, start: int = 0, stop: int | None = None
+    ) -> Iterator[EvaluationRecord]:
+        """A run's stored evaluations with start <= index < stop, in index order."""
+        cursor = self._connection.execute(
+            "SELECT idx, x, fitness, metrics, status, error, seed, wall_time, finished_at "
+            "FROM evaluations WHERE run_id = ? AND idx >= ? AND idx < ? ORDER BY idx",
+            (run_id, start, stop if stop is not None else 2**62),
+        )
+        for idx, x, fitness, metrics, status, error, seed, wall, finished in cursor:
+            yield EvaluationRecord(
+                index=idx,
+                x=np.frombuffer(x, dtype="<f8").copy(),
+                fitness=fitness,
+                metrics=json.loads(metrics) if metrics else {},
+                status=status,
+                error=error,
+                seed=seed,
+                wall_time=wall,
+                finished_at=finished,
+            )
+
+    def evaluation_counts(self, run_id: int) -> tuple[int, int]:
+        """(stored evaluations, failed ones) of a run."""
+        total, failed = self._connection.execute(
+            "SELECT COUNT(*), COALESCE(SUM(status = 'failed'), 0) FROM evaluations "
+            "WHERE run_id = ?",
+            (run_id,),
+        ).fetchone()
+        return int(total), int(failed)
+
+    def best_evaluation(self, run: RunRecord) -> EvaluationRecord | None:
+        """The best successful evaluation of a run under its sense, or None."""
+        order = "DESC" if run.sense == "maximize" else "ASC"
+        row = self._connection.execute(
+            "SELECT idx FROM evaluations WHERE run_id = ? AND status = 'ok' "
+            f"ORDER BY fitness {order}, idx LIMIT 1",
+            (run.id,),
+        ).fetchone()
+        if row is None:
+            return None
+        return next(self.evaluations(run.id, row[0], row[0] + 1))

@@ -1,0 +1,290 @@
+"""A real-coded generational genetic algorithm with elitism (optimizer ``ga``).
+
+Each generation is ``population`` new candidates bred from the current population by tournament
+selection, crossover (SBX or BLX-α) and per-gene mutation (polynomial or Gaussian), then brought
+inside the bounds by ``Space.repair``. The ``elites`` best members of a population pass unchanged,
+and are not evaluated again, into the next one, where they take the places of the ``elites``
+worst offspring. A generation therefore costs exactly ``population`` evaluations: the paper's
+setting, 10 generations of 200, is ``--set population=200`` with a budget of 2000.
+
+Candidates may be asked for and told in batches of any size: told results accumulate until a
+whole generation has been evaluated, and asks beyond the current generation are served by breeding
+more offspring from the current population.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from functools import partial
+from typing import Any
+
+import numpy as np
+
+from metaopt import (
+    ConfigError,
+    Optimizer,
+    OptimizerInfo,
+    Param,
+    Space,
+    hookimpl,
+    restore_rng,
+    rng_state,
+)
+from metaopt.space import REPAIR_METHODS
+
+Crossover = Callable[[np.ndarray, np.ndarray, np.random.Generator], tuple[np.ndarray, np.ndarray]]
+Mutation = Callable[[np.ndarray, np.ndarray, np.random.Generator], np.ndarray]
+
+
+def tournament_winners(fitness: np.ndarray, n: int, k: int, rng: np.random.Generator) -> np.ndarray:
+    """Indices of n winners of size-k tournaments without replacement (lowest fitness wins).
+
+    The population is shuffled and cut into groups of k, as often as needed (Goldberg, Korb &
+    Deb 1989): no one meets itself, every member competes about equally often, and k equal to
+    the population size always picks the best.
+    """
+    size = fitness.size
+    groups_per_shuffle = size // k
+    shuffles = -(-n // groups_per_shuffle)
+    order = rng.permuted(np.tile(np.arange(size), (shuffles, 1)), axis=1)
+    contestants = order[:, : groups_per_shuffle * k].reshape(-1, k)[:n]
+    return contestants[np.arange(n), np.argmin(fitness[contestants], axis=1)]
+
+
+def sbx(
+    first: np.ndarray, second: np.ndarray, rng: np.random.Generator, eta: float
+) -> tuple[np.ndarray, np.ndarray]:
+    """Simulated binary crossover (Deb & Agrawal 1995) with distribution index eta, per gene.
+
+    Children are symmetric around the parents' mean; a larger eta keeps them closer to the
+    parents. Children may leave the bounds; the caller repairs them.
+    """
+    u = rng.random(first.shape)
+    beta = np.where(u <= 0.5, 2.0 * u, 0.5 / (1.0 - u)) ** (1.0 / (eta + 1.0))
+    mean, half_spread = 0.5 * (first + second), 0.5 * beta * (second - first)
+    return mean - half_spread, mean + half_spread
+
+
+def blx(
+    first: np.ndarray, second: np.ndarray, rng: np.random.Generator, alpha: float
+) -> tuple[np.ndarray, np.ndarray]:
+    """BLX-α crossover (Eshelman & Schaffer 1993): each child gene is uniform in the parents'
+    interval widened by alpha times its length on both sides. The caller repairs the children.
+    """
+    low, high = np.minimum(first, second), np.maximum(first, second)
+    margin = alpha * (high - low)
+    low, span = low - margin, high - low + 2.0 * margin
+    return low + rng.random(first.shape) * span, low + rng.random(first.shape) * span
+
+
+def polynomial_mutation(
+    x: np.ndarray, width: np.ndarray, rng: np.random.Generator, rate: float, eta: float
+) -> np.ndarray:
+    """Polynomial mutation (Deb & Goyal 1996): each gene, with probability rate, moves by at most
+    one range width, small steps far likelier for a large eta. The caller repairs the result.
+    """
+    u = rng.random(x.shape)
+    exponent = 1.0 / (eta + 1.0)
+    step = np.where(u < 0.5, (2.0 * u) ** exponent - 1.0, 1.0 - (2.0 * (1.0 - u)) ** exponent)
+    return x + (rng.random(x.shape) < rate) * step * width
+
+
+def gaussian_mutation(
+    x: np.ndarray, width: np.ndarray, rng: np.random.Generator, rate: float, sigma: float
+) -> np.ndarray:
+    """Gaussian mutation: each gene, with probability rate, moves by a normal step whose standard
+    deviation is sigma times its range width. The caller repairs the result.
+    """
+    step = rng.standard_normal(x.shape) * (sigma * width)
+    return x + (rng.random(x.shape) < rate) * step
+
+
+class GeneticAlgorithm(Optimizer):
+    """Generational real-coded GA with elitism; see the module docstring for the scheme."""
+
+    steady_state = False
+
+    def __init__(
+        self,
+        space: Space,
+        seed: int,
+        *,
+        population: int,
+        elites: int,
+        tournament: int,
+        crossover: str,
+        crossover_rate: float,
+        eta_c: float,
+        blx_alpha: float,
+        mutation: str,
+        mutation_rate: float,
+        eta_m: float,
+        sigma: float,
+        repair: str,
+    ) -> None:
+        super().__init__(space, seed)
+        if elites >= population:
+            raise ConfigError(
+                f"ga parameter 'elites' = {elites} must be below 'population' = {population}"
+            )
+        if tournament > population:
+            raise ConfigError(
+                f"ga parameter 'tournament' = {tournament} cannot exceed "
+                f"'population' = {population}"
+            )
+        self.population_size = population
+        self.elites = elites
+        self.tournament_size = tournament
+        self.crossover_rate = crossover_rate
+        self.repair_method = repair
+        self.crossover: Crossover = (
+            partial(sbx, eta=eta_c) if crossover == "sbx" else partial(blx, alpha=blx_alpha)
+        )
+        self.mutation: Mutation = (
+            partial(polynomial_mutation, rate=mutation_rate, eta=eta_m)
+            if mutation == "polynomial"
+            else partial(gaussian_mutation, rate=mutation_rate, sigma=sigma)
+        )
+        empty = np.empty((0, space.dim))
+        #: The current population and its fitness; None until the first generation is told.
+        self.members: np.ndarray | None = None
+        self.fitness: np.ndarray | None = None
+        #: Bred candidates not yet asked for.
+        self.queue = empty
+        #: Evaluated offspring of the generation being completed.
+        self.offspring, self.offspring_fitness = empty, np.empty(0)
+        #: Generations fully evaluated (the random initial population is the first).
+        self.generations = 0
+
+    @property
+    def batch_size(self) -> int:
+        """One generation."""
+        return self.population_size
+
+    def ask(self, n: int) -> np.ndarray:
+        """The next n candidates of the current generation, breeding more when it runs out."""
+        while len(self.queue) < n:
+            self.queue = np.concatenate([self.queue, self._breed(self.population_size)])
+        asked, self.queue = self.queue[:n], self.queue[n:]
+        return asked
+
+    def tell(self, candidates: np.ndarray, fitnesses: np.ndarray) -> None:
+        """Collect evaluated offspring; each full generation's worth replaces the population."""
+        fitnesses = np.asarray(fitnesses, dtype=float)
+        self.offspring = np.concatenate([self.offspring, np.asarray(candidates, dtype=float)])
+        self.offspring_fitness = np.concatenate(
+            [self.offspring_fitness, np.where(np.isnan(fitnesses), np.inf, fitnesses)]
+        )
+        size = self.population_size
+        while len(self.offspring) >= size:
+            self._replace(self.offspring[:size], self.offspring_fitness[:size])
+            self.offspring, self.offspring_fitness = (
+                self.offspring[size:],
+                self.offspring_fitness[size:],
+            )
+
+    def _breed(self, n: int) -> np.ndarray:
+        """n new candidates: uniform at first, then selection, crossover, mutation, repair."""
+        if self.members is None:
+            return self.space.sample(self.rng, n)
+        pairs = -(-n // 2)
+        winners = self.members[
+            tournament_winners(self.fitness, 2 * pairs, self.tournament_size, self.rng)
+        ]
+        first, second = winners[:pairs], winners[pairs:]
+        child_a, child_b = self.crossover(first, second, self.rng)
+        crossed = (self.rng.random(pairs) < self.crossover_rate)[:, None]
+        children = np.concatenate(
+            [np.where(crossed, child_a, first), np.where(crossed, child_b, second)]
+        )[:n]
+        mutated = self.mutation(children, self.space.width, self.rng)
+        return self.space.repair(mutated, self.repair_method)
+
+    def _replace(self, offspring: np.ndarray, fitness: np.ndarray) -> None:
+        """Make a new population: the old one's elites plus the best of the offspring."""
+        if self.members is None:
+            self.members, self.fitness = offspring, fitness
+        else:
+            elite = np.argsort(self.fitness, kind="stable")[: self.elites]
+            kept = np.argsort(fitness, kind="stable")[: self.population_size - self.elites]
+            self.members = np.concatenate([self.members[elite], offspring[kept]])
+            self.fitness = np.concatenate([self.fitness[elite], fitness[kept]])
+        # Offspring still queued were bred from the population just replaced.
+        self.queue = self.queue[:0]
+        self.generations += 1
+
+    def state_dict(self) -> dict[str, Any]:
+        """Population, queue, partial generation, counters and generator as plain JSON."""
+        return {
+            "rng": rng_state(self.rng),
+            "members": None if self.members is None else self.members.tolist(),
+            "fitness": None if self.fitness is None else self.fitness.tolist(),
+            "queue": self.queue.tolist(),
+            "offspring": self.offspring.tolist(),
+            "offspring_fitness": self.offspring_fitness.tolist(),
+            "generations": self.generations,
+        }
+
+    def load_state_dict(self, state: dict[str, Any]) -> None:
+        """Restore what state_dict returned."""
+        dim = self.space.dim
+        restore_rng(self.rng, state["rng"])
+        if state["members"] is None:
+            self.members = self.fitness = None
+        else:
+            self.members = np.array(state["members"], dtype=float).reshape(-1, dim)
+            self.fitness = np.array(state["fitness"], dtype=float)
+        self.queue = np.array(state["queue"], dtype=float).reshape(-1, dim)
+        self.offspring = np.array(state["offspring"], dtype=float).reshape(-1, dim)
+        self.offspring_fitness = np.array(state["offspring_fitness"], dtype=float)
+        self.generations = int(state["generations"])
+
+
+PARAMS = (
+    Param("population", int, 50, "candidates per generation", low=2),
+    Param("elites", int, 2, "best members passed unchanged to the next generation", low=0),
+    Param("tournament", int, 2, "tournament size k of parent selection", low=1),
+    Param("crossover", str, "sbx", "crossover operator", choices=("sbx", "blx")),
+    Param("crossover_rate", float, 0.9, "probability that two parents are crossed", low=0, high=1),
+    Param("eta_c", float, 15.0, "sbx: distribution index (larger: children nearer parents)", low=0),
+    Param("blx_alpha", float, 0.5, "blx: widening of the parents' interval on each side", low=0),
+    Param("mutation", str, "polynomial", "mutation operator", choices=("polynomial", "gaussian")),
+    Param(
+        "mutation_rate",
+        float,
+        0.1,
+        "probability that each gene mutates (1/dim is customary: 0.1 for 10 variables)",
+        low=0,
+        high=1,
+    ),
+    Param("eta_m", float, 20.0, "polynomial: distribution index (larger: smaller steps)", low=0),
+    Param(
+        "sigma",
+        float,
+        0.1,
+        "gaussian: step deviation as a fraction of the range",
+        low=0,
+        low_open=True,
+    ),
+    Param(
+        "repair",
+        str,
+        "clip",
+        "how offspring outside the bounds are brought back",
+        choices=REPAIR_METHODS,
+    ),
+)
+
+
+@hookimpl
+def metaopt_optimizers() -> list[OptimizerInfo]:
+    """The genetic algorithm."""
+    return [
+        OptimizerInfo(
+            name="ga",
+            summary="Real-coded generational genetic algorithm with elitism",
+            factory=GeneticAlgorithm,
+            params=PARAMS,
+            description=__doc__,
+        )
+    ]

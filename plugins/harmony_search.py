@@ -1,0 +1,364 @@
+"""Harmony Search (HS): steady-state improvisation from a harmony memory, with four pitch rules.
+
+Geem, Kim and Loganathan (2001). The harmony memory holds ``hms`` solutions. The first ``hms``
+candidates (every candidate asked while the memory is not yet full) are uniform random points
+in the bounds; their evaluations fill the memory and count toward the run's budget. Each later
+candidate (a *harmony*) is improvised variable by variable: with probability ``hmcr`` the value
+of a random memory row is taken and then, with probability PAR, pitch-adjusted; otherwise a
+uniform random value is drawn. A told harmony replaces the worst in memory only when strictly
+better. ``ask(n)`` improvises n harmonies from the same memory; ``tell`` inserts them one by one.
+
+Pitch adjustment (``pitch_adjust``):
+
+- ``bandwidth`` (classic, Geem 2001, default): x + U(-1, 1) * bandwidth * (upper - lower).
+- ``resample`` (Yazdi and Toroghi Haghighat, section 4): a new uniform value in the bounds.
+- ``ihs`` (improved HS, Mahdavi, Fesanghary and Damangir 2007): as ``bandwidth``, but PAR
+  rises linearly from ``par_min`` to ``par_max`` and the bandwidth falls exponentially from
+  ``bandwidth_max`` to ``bandwidth_min`` over the ``budget - hms`` improvisations of the run.
+- ``ghs`` (global-best HS, Omran and Mahdavi 2008): the value of a random variable of the best
+  harmony, with IHS's rising PAR. Bounds differ per variable, so such values are repaired.
+
+Out-of-bound values are repaired by ``Space.repair`` (``repair``: clip or reflect).
+
+Defaults (hms 20, hmcr 0.9, par 0.3, bandwidth 0.01) reach 1e-3 on the 10-D sphere in
+20,000 evaluations and work well on Rastrigin.
+
+Speed: per-call numpy overhead dominates on small vectors, so the random choices of a block of
+improvisations (which memory row or random value feeds each variable, and the pitch step) are
+drawn at once; asking one harmony is then a gather from a flat pool holding the memory, a copy
+of the best harmony and the block's random values. The state stores the generator state at
+which the current block was drawn and the position in it; loading redraws the block.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import Any
+
+import numpy as np
+
+from metaopt import Optimizer, OptimizerInfo, Param, Space, hookimpl, restore_rng, rng_state
+from metaopt.errors import ConfigError
+from metaopt.space import REPAIR_METHODS
+
+PITCH_ADJUSTMENTS = ("bandwidth", "resample", "ihs", "ghs")
+#: Variants whose PAR follows the par_min -> par_max schedule.
+SCHEDULED_PAR = ("ihs", "ghs")
+#: Random values drawn per block: about this many per variable kind, whatever the dimension.
+BLOCK_VALUES = 8192
+
+
+class HarmonySearch(Optimizer):
+    """Steady-state Harmony Search over a box; minimizes."""
+
+    steady_state = True
+
+    def __init__(
+        self,
+        space: Space,
+        seed: int,
+        *,
+        hms: int,
+        hmcr: float,
+        par: float,
+        bandwidth: float,
+        pitch_adjust: str,
+        par_min: float,
+        par_max: float,
+        bandwidth_min: float,
+        bandwidth_max: float,
+        budget: int,
+        repair: str,
+    ) -> None:
+        super().__init__(space, seed)
+        if par_min > par_max:
+            raise ConfigError(f"hs: par_min ({par_min}) must not exceed par_max ({par_max})")
+        if bandwidth_min > bandwidth_max:
+            raise ConfigError(
+                f"hs: bandwidth_min ({bandwidth_min}) must not exceed "
+                f"bandwidth_max ({bandwidth_max})"
+            )
+        if pitch_adjust not in PITCH_ADJUSTMENTS:
+            raise ConfigError(f"hs: unknown pitch_adjust {pitch_adjust!r}")
+        self.hms = hms
+        self.hmcr = hmcr
+        self.par = par
+        self.bandwidth = bandwidth
+        self.pitch_adjust = pitch_adjust
+        self.par_min = par_min
+        self.par_max = par_max
+        self.bandwidth_min = bandwidth_min
+        self.bandwidth_max = bandwidth_max
+        self.budget = budget
+        self.repair = repair
+
+        dim = space.dim
+        self._block_size = max(16, BLOCK_VALUES // dim)
+        # Flat pool: memory rows, then a copy of the best harmony, then the block's random values.
+        self._best_start = hms * dim
+        self._random_start = self._best_start + dim
+        self._pool = np.zeros(self._random_start + self._block_size * dim)
+        self._memory = self._pool[: self._best_start].reshape(hms, dim)
+        self._fitness = np.full(hms, np.inf)
+        self._filled = 0
+        self._worst = 0
+        self._worst_fitness = math.inf
+        self._best = 0
+        self._improvisations = 0
+        # The current block: where each value of each harmony comes from, and its pitch step.
+        self._source = np.empty((0, dim), dtype=np.intp)
+        self._step: np.ndarray | None = None
+        self._position = 0
+        self._block_rng_state: dict[str, Any] | None = None
+
+    @property
+    def harmony_memory(self) -> np.ndarray:
+        """A copy of the filled memory rows, shape (filled, dim)."""
+        return self._memory[: self._filled].copy()
+
+    @property
+    def harmony_fitness(self) -> np.ndarray:
+        """A copy of the fitnesses of the filled memory rows."""
+        return self._fitness[: self._filled].copy()
+
+    @property
+    def improvisations(self) -> int:
+        """How many harmonies have been improvised (random initial points not counted)."""
+        return self._improvisations
+
+    def par_at(self, improvisation: np.ndarray | int) -> np.ndarray:
+        """PAR used by the improvisation(s) with this 0-based index."""
+        improvisation = np.asarray(improvisation, dtype=float)
+        if self.pitch_adjust not in SCHEDULED_PAR:
+            return np.full(improvisation.shape, self.par)
+        return self.par_min + (self.par_max - self.par_min) * self._progress(improvisation)
+
+    def bandwidth_at(self, improvisation: np.ndarray | int) -> np.ndarray:
+        """Bandwidth (fraction of each variable's range) of the improvisation(s) with this index.
+
+        Only the bandwidth and ihs variants move values by a bandwidth.
+        """
+        improvisation = np.asarray(improvisation, dtype=float)
+        if self.pitch_adjust != "ihs":
+            return np.full(improvisation.shape, self.bandwidth)
+        ratio = self.bandwidth_min / self.bandwidth_max
+        return self.bandwidth_max * ratio ** self._progress(improvisation)
+
+    def _progress(self, improvisation: np.ndarray) -> np.ndarray:
+        """Mahdavi's gn / NI: 1/NI for the first improvisation, 1 from the last one on."""
+        improvisations_in_budget = max(self.budget - self.hms, 1)
+        return np.minimum((improvisation + 1.0) / improvisations_in_budget, 1.0)
+
+    def ask(self, n: int) -> np.ndarray:
+        """Random points while the memory fills, then n harmonies improvised from the memory."""
+        if self._filled < self.hms:
+            return self.space.sample(self.rng, n)
+        harmonies = self._improvise(n)
+        while len(harmonies) < n:
+            harmonies = np.concatenate([harmonies, self._improvise(n - len(harmonies))])
+        return harmonies
+
+    def _improvise(self, count: int) -> np.ndarray:
+        """Up to count harmonies from what is left of the current block (drawn when used up)."""
+        if self._position == len(self._source):
+            self._draw_block(first=self._improvisations)
+        start = self._position
+        end = min(start + count, len(self._source))
+        harmonies = self._pool[self._source[start:end]]
+        self._position = end
+        self._improvisations += end - start
+        if self._step is not None:
+            harmonies += self._step[start:end]
+        if self.pitch_adjust == "resample":  # every value is a memory or in-bounds random value
+            return harmonies
+        return self.space.repair(harmonies, self.repair)
+
+    def _draw_block(self, first: int) -> None:
+        """Draw the random choices of the block of improvisations starting at index first."""
+        self._block_rng_state = rng_state(self.rng)
+        rng, size, dim = self.rng, self._block_size, self.space.dim
+        indices = np.arange(first, first + size)
+        considered = rng.random((size, dim)) < self.hmcr
+        pitched = considered & (rng.random((size, dim)) < self.par_at(indices)[:, None])
+        memory_source = rng.integers(0, self.hms, (size, dim)) * dim + np.arange(dim)
+        self._pool[self._random_start :] = self.space.sample(rng, size).ravel()
+        random_source = self._random_start + np.arange(size * dim).reshape(size, dim)
+        source = np.where(considered, memory_source, random_source)
+        self._step = None
+        if self.pitch_adjust == "resample":
+            source = np.where(pitched, random_source, source)
+        elif self.pitch_adjust == "ghs":
+            best_source = self._best_start + rng.integers(0, dim, (size, dim))
+            source = np.where(pitched, best_source, source)
+        else:
+            scale = self.bandwidth_at(indices)[:, None] * self.space.width
+            step = (2.0 * rng.random((size, dim)) - 1.0) * scale
+            self._step = np.where(pitched, step, 0.0)
+        self._source = source
+        self._position = 0
+
+    def tell(self, candidates: np.ndarray, fitnesses: np.ndarray) -> None:
+        """Fill the memory, then let each candidate replace the worst harmony if strictly better."""
+        fitness_values = np.asarray(fitnesses, dtype=float).ravel().tolist()
+        if len(candidates) != len(fitness_values):
+            raise ValueError(f"{len(candidates)} candidates but {len(fitness_values)} fitnesses")
+        for index, fitness in enumerate(fitness_values):
+            if self._filled < self.hms:
+                self._fill(candidates[index], fitness)
+            elif fitness < self._worst_fitness:
+                self._replace_worst(candidates[index], fitness)
+
+    def _fill(self, candidate: np.ndarray, fitness: float) -> None:
+        # NaN would never compare worse than anything and so would stay in memory for good.
+        self._memory[self._filled] = candidate
+        self._fitness[self._filled] = math.inf if math.isnan(fitness) else fitness
+        self._filled += 1
+        if self._filled == self.hms:
+            self._best = int(self._fitness.argmin())
+            self._update_worst()
+            self._copy_best()
+
+    def _replace_worst(self, candidate: np.ndarray, fitness: float) -> None:
+        self._memory[self._worst] = candidate
+        self._fitness[self._worst] = fitness
+        if fitness < self._fitness[self._best]:
+            self._best = self._worst
+            self._copy_best()
+        self._update_worst()
+
+    def _update_worst(self) -> None:
+        self._worst = int(self._fitness.argmax())
+        self._worst_fitness = float(self._fitness[self._worst])
+
+    def _copy_best(self) -> None:
+        self._pool[self._best_start : self._random_start] = self._memory[self._best]
+
+    def state_dict(self) -> dict[str, Any]:
+        """Memory, fitnesses, counters and generator states as plain JSON types."""
+        return {
+            "memory": self._memory[: self._filled].tolist(),
+            "fitness": [_json_float(f) for f in self._fitness[: self._filled].tolist()],
+            "best": self._best,
+            "improvisations": self._improvisations,
+            "block_rng": self._block_rng_state,
+            "block_position": self._position,
+            "rng": rng_state(self.rng),
+        }
+
+    def load_state_dict(self, state: dict[str, Any]) -> None:
+        """Restore a state_dict; the current block is redrawn from its saved generator state."""
+        filled = len(state["memory"])
+        if filled > self.hms or (filled and len(state["memory"][0]) != self.space.dim):
+            raise ConfigError("hs: saved harmony memory does not fit this hms and space")
+        self._filled = filled
+        self._fitness[:] = math.inf
+        if filled:
+            self._memory[:filled] = state["memory"]
+            self._fitness[:filled] = [float(f) for f in state["fitness"]]
+        self._best = state["best"]
+        if filled == self.hms:
+            self._update_worst()
+            self._copy_best()
+        self._improvisations = state["improvisations"]
+        self._source = np.empty((0, self.space.dim), dtype=np.intp)
+        self._step = None
+        self._position = 0
+        self._block_rng_state = state["block_rng"]
+        if self._block_rng_state is not None:
+            position = state["block_position"]
+            restore_rng(self.rng, self._block_rng_state)
+            self._draw_block(first=self._improvisations - position)
+            self._position = position
+        restore_rng(self.rng, state["rng"])
+
+
+def _json_float(value: float) -> float | str:
+    """Finite floats as they are; inf and nan as strings that float() reads back (strict JSON)."""
+    return value if math.isfinite(value) else str(value)
+
+
+PARAMS = (
+    Param("hms", int, 20, "harmony memory size: solutions kept (Geem: 10-30)", low=1),
+    Param(
+        "hmcr",
+        float,
+        0.9,
+        "harmony memory considering rate: chance a value comes from memory, not at random",
+        low=0.0,
+        high=1.0,
+    ),
+    Param(
+        "par",
+        float,
+        0.3,
+        "pitch adjusting rate: chance a memory value is adjusted (bandwidth, resample)",
+        low=0.0,
+        high=1.0,
+    ),
+    Param(
+        "bandwidth",
+        float,
+        0.01,
+        "largest pitch step, as a fraction of each variable's range (bandwidth variant)",
+        low=0.0,
+        high=1.0,
+        low_open=True,
+    ),
+    Param(
+        "pitch_adjust",
+        str,
+        "bandwidth",
+        "bandwidth: classic step within the bandwidth; resample: new random value (the paper); "
+        "ihs: improved HS with rising PAR and shrinking bandwidth; ghs: value from the best harmony",
+        choices=PITCH_ADJUSTMENTS,
+    ),
+    Param("par_min", float, 0.01, "PAR at the start (ihs, ghs)", low=0.0, high=1.0),
+    Param("par_max", float, 0.99, "PAR at the end of the budget (ihs, ghs)", low=0.0, high=1.0),
+    Param(
+        "bandwidth_min",
+        float,
+        1e-5,
+        "bandwidth at the end of the budget, fraction of the range (ihs)",
+        low=0.0,
+        high=1.0,
+        low_open=True,
+    ),
+    Param(
+        "bandwidth_max",
+        float,
+        0.05,
+        "bandwidth at the start, fraction of the range (ihs)",
+        low=0.0,
+        high=1.0,
+        low_open=True,
+    ),
+    Param(
+        "budget",
+        int,
+        10000,
+        "evaluations in the run, initial memory included: the span of the ihs and ghs schedules "
+        "(set it to the run's budget; past it they stay at their end values)",
+        low=1,
+    ),
+    Param(
+        "repair",
+        str,
+        "clip",
+        "how values pushed past a bound come back: clip to it or reflect off it",
+        choices=REPAIR_METHODS,
+    ),
+)
+
+
+@hookimpl
+def metaopt_optimizers() -> list[OptimizerInfo]:
+    """Announce the Harmony Search optimizer."""
+    return [
+        OptimizerInfo(
+            name="hs",
+            summary="Harmony Search (Geem 2001), steady state; classic, paper, IHS and GHS pitch",
+            factory=HarmonySearch,
+            params=PARAMS,
+            description=__doc__ or "",
+        )
+    ]

@@ -1,0 +1,48 @@
+"""Shared fixtures: an isolated install of the outside example plugin, and CLI helpers."""
+
+from __future__ import annotations
+
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+FIXTURES = Path(__file__).parent / "fixtures"
+
+
+@pytest.fixture(scope="session")
+def outside_plugin_path(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """The example plugin package, pip-installed into its own directory (not site-packages)."""
+    target = tmp_path_factory.mktemp("outside_plugin")
+    subprocess.run(
+        [
+            sys.executable, "-m", "pip", "install", "--quiet", "--no-deps",
+            "--no-build-isolation", "--target", str(target),
+            str(FIXTURES / "outside_plugin"),
+        ],
+        check=True,
+        capture_output=True,
+    )  # fmt: skip
+    return target
+
+
+def metaopt_cli(
+    *args: str, cwd: Path, extra_path: Path | None = None, env: dict | None = None
+) -> subprocess.CompletedProcess:
+    """Run the real `metaopt` command in a subprocess; env values of None unset a variable."""
+    environment = {**os.environ, "COLUMNS": "200", **(env or {})}
+    environment = {key: value for key, value in environment.items() if value is not None}
+    if extra_path is not None:
+        environment["PYTHONPATH"] = os.pathsep.join(
+            p for p in (str(extra_path), environment.get("PYTHONPATH", "")) if p
+        )
+    return subprocess.run(
+        [sys.executable, "-m", "metaopt", *args],
+        cwd=cwd,
+        env=environment,
+        capture_output=True,
+        text=True,
+        timeout=600,
+    )

@@ -1,0 +1,76 @@
+"""The command line through a real subprocess: happy paths and every kind of bad input."""
+
+import csv
+import io
+import json
+
+import pytest
+
+from tests.conftest import metaopt_cli
+
+BASIC = {"METAOPT_LOAD_PLUGINS": "harmony_search,genetic_algorithm,random_search,functions"}
+
+
+def test_run_then_runs_show_and_export(tmp_path):
+    done = metaopt_cli(
+        "run", "--optimizer", "hs", "--problem", "sphere", "--budget", "500", "--seed", "4",
+        "--set", "hmcr=0.95", "--set", "dim=5", cwd=tmp_path, env=BASIC,
+    )  # fmt: skip
+    assert done.returncode == 0, done.stderr
+    assert "best fitness" in done.stdout and "500 (0 failed)" in done.stdout
+    assert (tmp_path / "metaopt.db").exists()  # default store in the working directory
+    listing = metaopt_cli("runs", cwd=tmp_path, env=BASIC)
+    assert listing.returncode == 0 and "500/500" in listing.stdout and "finished" in listing.stdout
+    shown = metaopt_cli("show", "1", cwd=tmp_path, env=BASIC)
+    assert "hmcr" in shown.stdout and "0.95" in shown.stdout and "dim" in shown.stdout
+
+    exported = metaopt_cli("export", "1", "--format", "csv", cwd=tmp_path, env=BASIC)
+    rows = list(csv.DictReader(io.StringIO(exported.stdout)))
+    assert len(rows) == 500 and {"x0", "x4", "fitness", "status"} <= set(rows[0])
+    as_json = metaopt_cli("export", "1", "--format", "json", cwd=tmp_path, env=BASIC)
+    document = json.loads(as_json.stdout)
+    assert document["run"]["optimizer_params"]["hmcr"] == 0.95
+    assert len(document["evaluations"]) == 500
+    best_csv = min(float(r["fitness"]) for r in rows)
+    assert best_csv == min(e["fitness"] for e in document["evaluations"])
+
+
+def test_list_shows_every_plugin_and_one_in_full(tmp_path):
+    overview = metaopt_cli("list", cwd=tmp_path, env={"METAOPT_LOAD_PLUGINS": None})
+    assert overview.returncode == 0
+    for name in ("hs", "ga", "random", "sphere", "rastrigin", "schwefel"):
+        assert name in overview.stdout
+    one = metaopt_cli("list", "hs", cwd=tmp_path)
+    assert one.returncode == 0
+    assert "hmcr" in one.stdout and "[0, 1]" in one.stdout and "pitch_adjust" in one.stdout
+
+
+@pytest.mark.parametrize(
+    ("args", "message"),
+    [
+        (["run", "-o", "hss", "-p", "sphere"], "unknown optimizer 'hss'. Did you mean 'hs'?"),
+        (["run", "-o", "hs", "-p", "spher"], "unknown problem 'spher'. Did you mean 'sphere'?"),
+        (["run", "-o", "hs", "-p", "sphere", "--set", "hmcr=1.5"], "expected a float in [0, 1]"),
+        (["run", "-o", "hs", "-p", "sphere", "--set", "hmcx=1"], "has a parameter 'hmcx'"),
+        (["run", "-o", "hs", "-p", "sphere", "--set", "dim=ten"], "cannot read 'ten'"),
+        (["run", "-o", "hs", "-p", "sphere", "--set", "dim"], "--set expects NAME=VALUE"),
+        (["run", "-o", "hs", "-p", "sphere", "--budget", "0"], "must be at least 1"),
+        (["list", "nonesuch"], "unknown optimizer 'nonesuch'"),
+        (["show", "3"], "no run store at metaopt.db"),
+    ],
+)
+def test_bad_input_gives_one_clear_line_and_exit_2(tmp_path, args, message):
+    done = metaopt_cli(*args, cwd=tmp_path, env=BASIC)
+    assert done.returncode == 2
+    assert message in done.stderr
+    assert "Traceback" not in done.stderr + done.stdout
+    assert not (tmp_path / "metaopt.db").exists() or args[0] != "run"
+
+
+def test_foreign_db_file_is_refused_and_kept(tmp_path):
+    precious = tmp_path / "thesis.db"
+    precious.write_bytes(b"not a database at all")
+    done = metaopt_cli("run", "-o", "hs", "-p", "sphere", "--db", str(precious), cwd=tmp_path,
+                       env=BASIC)  # fmt: skip
+    assert done.returncode == 2 and "not a SQLite database" in done.stderr
+    assert precious.read_bytes() == b"not a database at all"

@@ -1,0 +1,47 @@
+import pytest
+
+from metaopt import ConfigError, Param
+from metaopt.params import resolve
+
+RATE = Param("hmcr", float, 0.9, "memory considering rate", low=0.0, high=1.0)
+SIZE = Param("hms", int, 20, "memory size", low=1)
+KIND = Param("pitch", str, "bandwidth", "variant", choices=("bandwidth", "resample"))
+FLAG = Param("verbose", bool, False, "talk more")
+
+
+def test_parse_converts_and_validates_each_type():
+    assert RATE.parse("0.95", "hs") == 0.95
+    assert SIZE.parse("30", "hs") == 30
+    assert SIZE.parse("3e1", "hs") == 30
+    assert KIND.parse("resample", "hs") == "resample"
+    assert FLAG.parse("yes", "hs") is True and FLAG.parse("off", "hs") is False
+
+
+@pytest.mark.parametrize(
+    ("param", "text", "expected"),
+    [
+        (RATE, "1.5", r"'hmcr' = 1.5 is invalid; expected a float in \[0, 1\]"),
+        (RATE, "abc", r"cannot read 'abc'; expected a float in \[0, 1\]"),
+        (SIZE, "0", r"expected an int in \[1, inf\]"),
+        (SIZE, "2.5", "cannot read '2.5'"),
+        (KIND, "wobble", "expected one of bandwidth, resample"),
+        (FLAG, "maybe", "expected true or false"),
+    ],
+)
+def test_bad_values_name_the_parameter_and_what_is_accepted(param, text, expected):
+    with pytest.raises(ConfigError, match=expected):
+        param.parse(text, "hs")
+
+
+def test_open_bounds_exclude_the_endpoint():
+    tau = Param("tau", float, 1.0, "time constant", low=0.0, low_open=True)
+    assert tau.accepted() == "a float in (0, inf]"
+    with pytest.raises(ConfigError):
+        tau.validate(0.0, "x")
+    assert tau.validate(1e-9, "x") == 1e-9
+
+
+def test_resolve_fills_defaults_and_suggests_close_names():
+    assert resolve((RATE, SIZE), {"hms": 5}, "hs") == {"hmcr": 0.9, "hms": 5}
+    with pytest.raises(ConfigError, match="Did you mean 'hmcr'"):
+        resolve((RATE, SIZE), {"hmrc": 0.5}, "hs")

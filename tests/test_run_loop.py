@@ -1,0 +1,115 @@
+"""The run loop: seeding, storage, sense translation, failures and interruption."""
+
+import numpy as np
+import pytest
+
+from metaopt import ConfigError, Evaluation, Problem, ProblemInfo, Sense, Space
+from metaopt.plugins import registry
+from metaopt.run_loop import RunSpec, run
+from metaopt.store import RunStore
+
+
+def _stored(store: RunStore, run_id: int) -> list[tuple]:
+    return [(e.index, e.x.tobytes(), e.fitness, e.seed) for e in store.evaluations(run_id)]
+
+
+def _run(store, optimizer="hs", problem="sphere", budget=300, seed=1, **params):
+    plugins = registry()
+    spec = RunSpec(optimizer, problem, budget, seed, optimizer_params=params)
+    return run(spec, plugins.optimizer(optimizer), plugins.problem(problem), store)
+
+
+@pytest.mark.parametrize("optimizer", ["hs", "ga", "random"])
+def test_same_seed_same_run_bit_for_bit_and_other_seeds_differ(tmp_path, optimizer):
+    with RunStore(tmp_path / "runs.db") as store:
+        first = _run(store, optimizer, seed=11)
+        second = _run(store, optimizer, seed=11)
+        third = _run(store, optimizer, seed=12)
+        assert _stored(store, first.run_id) == _stored(store, second.run_id)
+        assert len(_stored(store, first.run_id)) == 300
+        assert _stored(store, first.run_id) != _stored(store, third.run_id)
+        assert first.best_fitness == second.best_fitness
+
+
+def test_every_evaluation_is_stored_with_the_run_record(tmp_path):
+    with RunStore(tmp_path / "runs.db") as store:
+        result = _run(store, budget=123, hmcr=0.8)
+        record = store.run(result.run_id)
+        assert record.status == "finished"
+        assert record.optimizer_params["hmcr"] == 0.8
+        assert record.optimizer_params["budget"] == 123  # schedules follow the run's budget
+        assert record.problem_params == {"dim": 10}
+        assert {"python", "numpy", "metaopt"} <= set(record.versions)
+        assert record.ended_at is not None and record.wall_time > 0
+        assert store.evaluation_counts(result.run_id) == (123, 0)
+        assert record.state_evaluations == 123 and record.optimizer_state
+        fitnesses = [e.fitness for e in store.evaluations(result.run_id)]
+        assert min(fitnesses) == result.best_fitness
+        assert len({e.seed for e in store.evaluations(result.run_id)}) == 123
+
+
+class Peak(Problem):
+    """Maximize -(x - 0.7)^2; NaN for x < -0.5, an exception for x > 0.9, interrupt at x=stop."""
+
+    sense = Sense.MAXIMIZE
+
+    def __init__(self, interrupt_after: int = -1) -> None:
+        self.space = Space.from_bounds([-1.0], [1.0])
+        self.calls = 0
+        self.interrupt_after = interrupt_after
+
+    def evaluate(self, x, seed):
+        self.calls += 1
+        if self.calls == self.interrupt_after:
+            raise KeyboardInterrupt
+        if x[0] < -0.5:
+            return Evaluation(float("nan"))
+        if x[0] > 0.9:
+            raise RuntimeError("simulation exploded")
+        return Evaluation(-((x[0] - 0.7) ** 2), {"x": float(x[0])})
+
+
+def _peak_info(**kwargs):
+    return ProblemInfo("peak", "test peak", factory=lambda: Peak(**kwargs))
+
+
+def test_maximize_failures_and_summary(tmp_path):
+    with RunStore(tmp_path / "runs.db") as store:
+        spec = RunSpec("hs", "peak", 400, 3)
+        result = run(spec, registry().optimizer("hs"), _peak_info(), store)
+        evaluations = list(store.evaluations(result.run_id))
+        failed = [e for e in evaluations if e.status == "failed"]
+        assert result.failed == len(failed) > 0
+        assert {e.error for e in failed} >= {"fitness is nan", "RuntimeError: simulation exploded"}
+        ok = [e.fitness for e in evaluations if e.status == "ok"]
+        assert result.best_fitness == max(ok)  # maximized, not minimized
+        assert result.best_fitness > -1e-3 and abs(result.best_x[0] - 0.7) < 0.05
+
+
+def test_interrupt_keeps_every_finished_evaluation(tmp_path):
+    with RunStore(tmp_path / "runs.db") as store:
+        spec = RunSpec("hs", "peak", 1000, 3)
+        with pytest.raises(KeyboardInterrupt):
+            run(spec, registry().optimizer("hs"), _peak_info(interrupt_after=251), store)
+        record = store.runs()[-1]
+        assert record.status == "interrupted"
+        assert store.evaluation_counts(record.id)[0] == 250
+
+
+def test_bad_budget_and_parameters_are_config_errors(tmp_path):
+    with RunStore(tmp_path / "runs.db") as store:
+        with pytest.raises(ConfigError, match="budget must be a positive"):
+            _run(store, budget=0)
+        with pytest.raises(ConfigError, match="'hmcr' = 1.5 is invalid"):
+            _run(store, hmcr=1.5)
+        assert store.runs() == []
+
+
+def test_hs_finds_the_sphere_far_better_than_random(tmp_path):
+    with RunStore(tmp_path / "runs.db") as store:
+        hs = _run(store, "hs", budget=20_000, seed=5)
+        ga = _run(store, "ga", budget=20_000, seed=5)
+        rnd = _run(store, "random", budget=20_000, seed=5)
+    assert hs.best_fitness < 1e-2 and ga.best_fitness < 1e-2
+    assert rnd.best_fitness > 100 * max(hs.best_fitness, ga.best_fitness)
+    assert np.all(np.abs(hs.best_x) < 0.1)

@@ -1,0 +1,92 @@
+import sqlite3
+import time
+
+import numpy as np
+import pytest
+
+from metaopt import StoreError
+from metaopt.store import FLUSH_INTERVAL, RunStore
+
+
+def _new_run(store: RunStore) -> int:
+    return store.create_run(
+        optimizer="hs",
+        optimizer_params={"hmcr": 0.9},
+        problem="sphere",
+        problem_params={"dim": 2},
+        seed=7,
+        budget=10,
+        sense="minimize",
+        space=[{"name": "x0", "lower": -1, "upper": 1, "description": ""}],
+        versions={"python": "3"},
+    )
+
+
+def test_evaluations_round_trip_exactly(tmp_path):
+    x = np.array([0.1, -1 / 3, np.pi])
+    with RunStore(tmp_path / "a.db") as store:
+        run_id = _new_run(store)
+        store.add_evaluation(run_id, 0, x, 1.25, {"distance": 2.5}, None, 99, 0.01)
+        store.add_evaluation(run_id, 1, x * 2, None, None, "ValueError: boom", 100, 0.02)
+    with RunStore(tmp_path / "a.db") as store:
+        first, second = store.evaluations(run_id)
+        assert first.x.tobytes() == x.tobytes()  # bit for bit
+        assert (first.fitness, first.metrics, first.status, first.seed) == (
+            1.25, {"distance": 2.5}, "ok", 99,
+        )  # fmt: skip
+        assert (second.fitness, second.status, second.error) == (None, "failed", "ValueError: boom")
+        assert store.evaluation_counts(run_id) == (2, 1)
+        assert store.run(run_id).optimizer_params == {"hmcr": 0.9}
+
+
+def test_queued_evaluations_are_committed_within_the_flush_interval(tmp_path):
+    """A finished evaluation never waits long uncommitted, even when no more follow."""
+    store = RunStore(tmp_path / "b.db")
+    run_id = _new_run(store)
+    store.add_evaluation(run_id, 0, np.zeros(1), 1.0, None, None, 1, 0.0)
+    reader = sqlite3.connect(tmp_path / "b.db")
+    deadline = time.monotonic() + 4 * FLUSH_INTERVAL
+    count = 0
+    while time.monotonic() < deadline and count == 0:
+        count = reader.execute("SELECT COUNT(*) FROM evaluations").fetchone()[0]
+        time.sleep(0.05)
+    assert count == 1
+    store.close()
+
+
+def test_foreign_files_are_refused_and_left_untouched(tmp_path):
+    text = tmp_path / "notes.db"
+    text.write_text("my notes")
+    with pytest.raises(StoreError, match="not a SQLite database"):
+        RunStore(text)
+    assert text.read_text() == "my notes"
+    other = tmp_path / "other.db"
+    with sqlite3.connect(other) as connection:
+        connection.execute("CREATE TABLE customers (name TEXT)")
+    with pytest.raises(StoreError, match="database of something else"):
+        RunStore(other)
+    with pytest.raises(StoreError, match="is a directory"):
+        RunStore(tmp_path)
+
+
+def test_unknown_run_names_the_known_ones(tmp_path):
+    with RunStore(tmp_path / "c.db") as store:
+        _new_run(store)
+        with pytest.raises(StoreError, match="no run 5 .* runs there: 1"):
+            store.run(5)
+        with pytest.raises(StoreError, match="must be a number"):
+            store.run("abc")
+
+
+def test_two_writers_on_one_file_keep_all_their_data(tmp_path):
+    path = tmp_path / "shared.db"
+    first, second = RunStore(path), RunStore(path)
+    run_a, run_b = _new_run(first), _new_run(second)
+    for i in range(200):
+        first.add_evaluation(run_a, i, np.zeros(1), float(i), None, None, i, 0.0)
+        second.add_evaluation(run_b, i, np.ones(1), float(-i), None, None, i, 0.0)
+    first.close()
+    second.close()
+    with RunStore(path) as store:
+        assert store.evaluation_counts(run_a) == (200, 0)
+        assert store.evaluation_counts(run_b) == (200, 0)
