@@ -159,7 +159,9 @@ def show_command(run_id: str, db_path: str) -> None:
     with RunStore(db_path) as store:
         record = store.run(run_id)
         console.print(
-            display.run_detail(record, store.evaluation_counts(record.id), store.best_evaluation(record))
+            display.run_detail(
+                record, store.evaluation_counts(record.id), store.best_evaluation(record)
+            )
         )
 
 

@@ -87,7 +87,9 @@ class RichProgress:
 
     def start(self, total: int, done: int) -> None:
         """Create the bar."""
-        self._task = self._bar.add_task(self._label, total=total, completed=done, best="-", rate="-")
+        self._task = self._bar.add_task(
+            self._label, total=total, completed=done, best="-", rate="-"
+        )
         self._started = time.perf_counter()
         self._first_done = done
 

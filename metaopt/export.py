@@ -56,7 +56,9 @@ def export_run(store: RunStore, run_id: int | str, fmt: str, out: TextIO) -> int
         return len(evaluations)
     metric_names = sorted({name for e in evaluations for name in e.metrics})
     writer = csv.writer(out, lineterminator="\n")
-    writer.writerow(["index", "status", "fitness", *names, *metric_names, "seed", "wall_time", "error"])
+    writer.writerow(
+        ["index", "status", "fitness", *names, *metric_names, "seed", "wall_time", "error"]
+    )
     for e in evaluations:
         writer.writerow(
             [

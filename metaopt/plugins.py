@@ -82,7 +82,9 @@ def _lookup(table: dict[str, Any], name: str, kind: str):
     if name in table:
         return table[name]
     installed = ", ".join(table) or "none installed"
-    raise ConfigError(f"unknown {kind} {name!r}.{suggest(name, list(table))} Installed: {installed}")
+    raise ConfigError(
+        f"unknown {kind} {name!r}.{suggest(name, list(table))} Installed: {installed}"
+    )
 
 
 def build_manager(extra_modules: Iterable[ModuleType] = ()) -> tuple[pluggy.PluginManager, dict]:

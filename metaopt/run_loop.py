@@ -17,7 +17,7 @@ from metaopt.errors import ConfigError
 from metaopt.optimizer import Optimizer, OptimizerInfo
 from metaopt.params import resolve
 from metaopt.problem import Evaluation, Problem, ProblemInfo, Sense
-from metaopt.seeding import evaluation_seed
+from metaopt.seeding import EvaluationSeeds
 from metaopt.store import RunStore
 from metaopt.versions import environment_versions
 
@@ -31,7 +31,7 @@ class Progress(Protocol):
         """The run starts (or resumes) with ``done`` of ``total`` evaluations behind it."""
 
     def update(self, done: int, best: float | None) -> None:
-        """``done`` evaluations are finished; ``best`` is the best fitness so far (problem sense)."""
+        """``done`` evaluations are finished; ``best`` is the best fitness so far."""
 
 
 @dataclass
@@ -134,6 +134,7 @@ def _loop(
     progress: Progress | None,
 ) -> RunResult:
     sign = -1.0 if Sense(problem.sense) is Sense.MAXIMIZE else 1.0
+    evaluation_seed = EvaluationSeeds(spec.seed)
     best = _Best()
     done = told = failed = 0
     started = time.perf_counter()
@@ -146,7 +147,7 @@ def _loop(
             batch = optimizer.ask(min(optimizer.batch_size, spec.budget - done))
             scores = np.empty(len(batch))
             for row, x in enumerate(batch):
-                seed = evaluation_seed(spec.seed, done)
+                seed = evaluation_seed(done)
                 tick = time.perf_counter()
                 evaluation, error = evaluate_safely(problem, x, seed)
                 wall = time.perf_counter() - tick

@@ -13,10 +13,16 @@ def _splitmix64(value: int) -> int:
     return value ^ (value >> 31)
 
 
-def evaluation_seed(run_seed: int, index: int) -> int:
-    """The seed of evaluation ``index`` of a run: depends only on (run_seed, index).
+class EvaluationSeeds:
+    """The seed of evaluation ``index`` of a run depends only on (run seed, index).
 
-    So a candidate evaluates the same whatever executor, worker or order runs it. The result
-    fits in 63 bits (any numpy or engine seed accepts it after ``% 2**32`` if needed).
+    So a candidate evaluates the same whatever executor, worker or order runs it. Seeds fit in
+    63 bits (take ``% 2**32`` where an engine wants 32).
     """
-    return _splitmix64(_splitmix64(run_seed & _MASK64) ^ index) >> 1
+
+    def __init__(self, run_seed: int) -> None:
+        self._run_key = _splitmix64(run_seed & _MASK64)
+
+    def __call__(self, index: int) -> int:
+        """The seed of evaluation ``index``."""
+        return _splitmix64(self._run_key ^ index) >> 1

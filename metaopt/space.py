@@ -95,7 +95,9 @@ class Space:
             offset = np.mod(x - self.lower, 2.0 * self.width)
             folded = np.where(offset > self.width, 2.0 * self.width - offset, offset)
             return np.clip(self.lower + folded, self.lower, self.upper)
-        raise ConfigError(f"unknown repair method {method!r}; accepted: {', '.join(REPAIR_METHODS)}")
+        raise ConfigError(
+            f"unknown repair method {method!r}; accepted: {', '.join(REPAIR_METHODS)}"
+        )
 
     def as_dict(self, x: np.ndarray) -> dict[str, float]:
         """A candidate as {variable name: value}."""

@@ -32,7 +32,7 @@ def rastrigin(x: np.ndarray) -> float:
 
 
 def rosenbrock(x: np.ndarray) -> float:
-    """Σ 100·(x_{i+1} − x_i²)² + (1 − x_i)²; a curved narrow valley, minimum at (1, ..., 1)."""
+    """Σ 100·(x_{i+1} − x_i²)² + (1 − x_i)²; a narrow curved valley."""
     head, tail = x[:-1], x[1:]
     return float((100.0 * (tail - head * head) ** 2 + (1.0 - head) ** 2).sum())
 
@@ -57,7 +57,11 @@ def schwefel(x: np.ndarray) -> float:
 
 @dataclass(frozen=True)
 class FunctionSpec:
-    """One benchmark function: its formula, customary bounds and where its minimum (0) lies."""
+    """One benchmark function: its formula, customary bounds and where its minimum (0) lies.
+
+    ``min_dim`` is the fewest variables the formula is meaningful for (Rosenbrock couples
+    neighbours, so it needs two).
+    """
 
     name: str
     function: Callable[[np.ndarray], float]

@@ -6,11 +6,11 @@ import math
 
 import numpy as np
 import pytest
-from metaopt_problems import functions
 
 from metaopt import ConfigError, Sense
 from metaopt.params import resolve
 from metaopt.plugins import Registry, build_manager
+from metaopt_problems import functions
 
 INFOS = {info.name: info for info in functions.metaopt_problems()}
 BOUNDS = {

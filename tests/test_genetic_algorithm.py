@@ -7,12 +7,12 @@ import json
 
 import numpy as np
 import pytest
-from metaopt_plugins import genetic_algorithm as ga
-from metaopt_plugins import random_search
 
 from metaopt import ConfigError, Space
 from metaopt.params import resolve
 from metaopt.plugins import Registry, build_manager
+from metaopt_plugins import genetic_algorithm as ga
+from metaopt_plugins import random_search
 
 SPHERE_10 = Space.from_bounds([-5.12] * 10, [5.12] * 10)
 

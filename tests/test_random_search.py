@@ -5,11 +5,11 @@ from __future__ import annotations
 import json
 
 import numpy as np
-from metaopt_plugins import random_search
 
 from metaopt import Space
 from metaopt.params import resolve
 from metaopt.plugins import Registry, build_manager
+from metaopt_plugins import random_search
 
 SPACE = Space.from_bounds([-1.0, 10.0, 0.0], [1.0, 10.5, 1e-6])
 

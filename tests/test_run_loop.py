@@ -100,7 +100,7 @@ def test_bad_budget_and_parameters_are_config_errors(tmp_path):
     with RunStore(tmp_path / "runs.db") as store:
         with pytest.raises(ConfigError, match="budget must be a positive"):
             _run(store, budget=0)
-        with pytest.raises(ConfigError, match="'hmcr' = 1.5 is invalid"):
+        with pytest.raises(ConfigError, match=r"'hmcr' = 1\.5 is invalid"):
             _run(store, hmcr=1.5)
         assert store.runs() == []
 

@@ -5,7 +5,7 @@ from metaopt import ConfigError, Space, Variable
 
 
 def test_bounds_must_be_ordered_and_finite():
-    with pytest.raises(ConfigError, match="lower bound 2.0 >= upper bound 1.0"):
+    with pytest.raises(ConfigError, match=r"lower bound 2\.0 >= upper bound 1\.0"):
         Space([Variable("a", 2.0, 1.0)])
     with pytest.raises(ConfigError, match="finite"):
         Space([Variable("a", 0.0, float("inf"))])

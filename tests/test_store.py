@@ -72,7 +72,7 @@ def test_foreign_files_are_refused_and_left_untouched(tmp_path):
 def test_unknown_run_names_the_known_ones(tmp_path):
     with RunStore(tmp_path / "c.db") as store:
         _new_run(store)
-        with pytest.raises(StoreError, match="no run 5 .* runs there: 1"):
+        with pytest.raises(StoreError, match=r"no run 5 .* runs there: 1"):
             store.run(5)
         with pytest.raises(StoreError, match="must be a number"):
             store.run("abc")
