@@ -194,10 +194,9 @@ def servo_velocities(
     targets are not finite numbers (a diverging controller)."""
     np.subtract(targets, angles, out=out)
     out *= settings.servo_gain
-    np.clip(out, -settings.max_joint_speed, settings.max_joint_speed, out=out)
     if not math.isfinite(out.sum()):
         raise EvaluationError("joint targets are not finite numbers (the controller diverged)")
-    return out
+    return np.clip(out, -settings.max_joint_speed, settings.max_joint_speed, out=out)
 
 
 class PhysicsBackend(ABC):
@@ -238,6 +237,10 @@ class PhysicsBackend(ABC):
     @abstractmethod
     def root_rotation(self) -> np.ndarray:
         """Root body orientation as a 3x3 rotation matrix (body to world)."""
+
+    @abstractmethod
+    def body_position(self, name: str) -> np.ndarray:
+        """Centre of the body called name in the world, metres (for checks, plots, videos)."""
 
     @abstractmethod
     def contact_forces(self) -> np.ndarray:

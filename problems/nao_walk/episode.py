@@ -1,0 +1,208 @@
+"""The paper's walking episode: a lock phase, then a gait drives both legs' pitch joints.
+
+One EpisodeRunner per backend: it simulates the lock phase once, keeps the resulting state
+(where the engine restores bit for bit) and starts every episode from it. The walking phase
+stops at a fall. Metrics and the two fitness formulas (robust, paper) live here too.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+from dataclasses import asdict, dataclass, field
+from typing import Any, Protocol
+
+import numpy as np
+
+from metaopt.errors import EvaluationError
+from metaopt.physics import PhysicsBackend
+
+#: The joints a gait drives, in the order Gait.step returns their targets.
+DRIVEN_JOINTS = ("llj3", "llj4", "llj5", "rlj3", "rlj4", "rlj5")
+#: The joints whose measured angles feed back into the gait (left, right hip pitch).
+FEEDBACK_JOINTS = ("llj3", "rlj3")
+#: robust fitness: a fall costs this much progress, metres ...
+FALL_PENALTY = 1.0
+#: ... plus this much per second of walking phase left at the fall, metres per second
+#: (more than twice the paper's best walking speed of 0.44 m/s).
+FALL_PENALTY_RATE = 1.0
+FITNESS_KINDS = ("robust", "paper")
+
+
+class Gait(Protocol):
+    """A walking controller: six joint targets per control step from the two hip angles."""
+
+    def reset(self) -> None:
+        """Back to the controller's initial state."""
+
+    def step(self, left_hip: float, right_hip: float) -> Sequence[float]:
+        """Targets (radians) for DRIVEN_JOINTS from the measured llj3, rlj3 (radians)."""
+
+
+class SineGait:
+    """A fixed reference gait (for tests and benchmarks, no optimization): hips swing in
+    anti-phase about a slight flexion, knees bend on the forward swing, ankles keep the feet
+    parallel to the torso (lj5 = -(lj3 + lj4))."""
+
+    def __init__(self, period: float = 0.6, hip: float = 0.15, knee: float = 0.3) -> None:
+        self.period, self.hip, self.knee = period, hip, knee
+        self.t = 0.0
+
+    def reset(self) -> None:
+        self.t = 0.0
+
+    def step(self, left_hip: float, right_hip: float) -> tuple[float, ...]:
+        self.t += 0.02
+        s = math.sin(2 * math.pi * self.t / self.period)
+        lh, rh = 0.2 + self.hip * s, 0.2 - self.hip * s
+        lk, rk = -0.3 - self.knee * max(0.0, s), -0.3 - self.knee * max(0.0, -s)
+        return (lh, lk, -(lh + lk), rh, rk, -(rh + rk))
+
+
+@dataclass(frozen=True)
+class EpisodeSettings:
+    """Timing and fall rule of an episode (seconds, metres, degrees)."""
+
+    duration: float = 15.0
+    lock: float = 3.0
+    fall_height: float = 0.25
+    fall_tilt: float = 60.0
+
+
+@dataclass
+class EpisodeResult:
+    """What one episode measured. Positions are of the torso centre, relative to where the
+    walking phase started; x forward, y left."""
+
+    distance: float  #: forward progress X, m
+    drift: float  #: lateral displacement Y, m (signed)
+    time_walked: float  #: seconds of walking phase before the fall or the end
+    fell: bool
+    fall_time: float  #: episode time of the fall; the duration when it did not fall
+    height_min: float  #: torso height extremes during the walking phase, m
+    height_max: float
+    #: per control step, when recorded: time since walking began, torso x, y, z (world),
+    #: torso tilt (degrees), then targets and measured angles of DRIVEN_JOINTS (radians)
+    trajectory: dict[str, np.ndarray] | None = field(default=None, repr=False)
+
+    @property
+    def speed(self) -> float:
+        """Mean forward speed over the time walked, m/s."""
+        return self.distance / self.time_walked if self.time_walked > 0 else 0.0
+
+    def metrics(self) -> dict[str, float]:
+        """The scalar metrics stored with every evaluation."""
+        values = {k: float(v) for k, v in asdict(self).items() if k != "trajectory"}
+        values["speed"] = self.speed
+        values["height_range"] = self.height_max - self.height_min
+        return values
+
+
+def fitness(result: EpisodeResult, kind: str, duration: float) -> float:
+    """Score an episode (to be maximized); progress is X - |Y|.
+
+    robust: progress, minus FALL_PENALTY + FALL_PENALTY_RATE * (time left) after a fall.
+    Monotone: with the same progress a later fall scores higher, and a fall always scores below
+    stopping on the spot at that moment.
+    paper: eq. 9 as printed: progress, divided by the time left after a fall. Flawed: a fall
+    with under 1 s left multiplies the score, and with negative progress falling early helps.
+    """
+    progress = result.distance - abs(result.drift)
+    remaining = duration - result.fall_time
+    if not result.fell or remaining <= 0:
+        return progress
+    if kind == "paper":
+        return progress / remaining
+    return progress - FALL_PENALTY - FALL_PENALTY_RATE * remaining
+
+
+class EpisodeRunner:
+    """Runs episodes on one backend, reusing the simulated lock phase where that is exact."""
+
+    def __init__(self, backend: PhysicsBackend, settings: EpisodeSettings) -> None:
+        self.backend = backend
+        self.settings = settings
+        robot = backend.robot
+        period = backend.settings.control_period
+        self._lock_steps = round(settings.lock / period)
+        self._walk_steps = round((settings.duration - settings.lock) / period)
+        self._period = period
+        self._driven = [robot.joint_index(name) for name in DRIVEN_JOINTS]
+        self._feedback = [robot.joint_index(name) for name in FEEDBACK_JOINTS]
+        self._rest = robot.rest_angles
+        self._targets = self._rest.copy()
+        self._cos_tilt = math.cos(math.radians(settings.fall_tilt))
+        self._after_lock: Any = None
+
+    def _start_walking(self) -> None:
+        """Put the backend at the end of the lock phase (restored or simulated)."""
+        if self._after_lock is not None:
+            self.backend.restore_state(self._after_lock)
+            return
+        self.backend.reset()
+        for _ in range(self._lock_steps):
+            self.backend.step(self._rest)
+        if self._fallen():
+            raise EvaluationError(
+                "the robot fell during the lock phase; the physics settings do not let it stand"
+            )
+        if self.backend.restores_exactly:
+            self._after_lock = self.backend.save_state()
+
+    def _fallen(self) -> bool:
+        z = float(self.backend.root_position()[2])
+        return z < self.settings.fall_height or self.backend.root_rotation()[2, 2] < self._cos_tilt
+
+    def run(self, gait: Gait, record: bool = False) -> EpisodeResult:
+        """One episode: lock phase (all joints held at rest), then gait drives DRIVEN_JOINTS
+        until the end or a fall. ``record`` keeps a per-step trajectory for plots."""
+        backend, targets = self.backend, self._targets
+        targets[:] = self._rest
+        self._start_walking()
+        gait.reset()
+        x0, y0, z = (float(v) for v in backend.root_position())
+        height_min = height_max = z
+        left, right = self._feedback
+        j0, j1, j2, j3, j4, j5 = self._driven
+        fall_height, cos_tilt = self.settings.fall_height, self._cos_tilt
+        rows: list[list[float]] = []
+        fell, steps = False, 0
+        while steps < self._walk_steps:
+            angles = backend.joint_angles()
+            out = gait.step(float(angles[left]), float(angles[right]))
+            targets[j0], targets[j1], targets[j2] = out[0], out[1], out[2]
+            targets[j3], targets[j4], targets[j5] = out[3], out[4], out[5]
+            backend.step(targets)
+            steps += 1
+            position = backend.root_position()
+            z = float(position[2])
+            height_min, height_max = min(height_min, z), max(height_max, z)
+            upright = float(backend.root_rotation()[2, 2])
+            if record:
+                angles = backend.joint_angles()
+                tilt = math.degrees(math.acos(max(-1.0, min(1.0, upright))))
+                rows.append([steps * self._period, *position, tilt, *out, *angles[self._driven]])
+            if z < fall_height or upright < cos_tilt:
+                fell = True
+                break
+        if not math.isfinite(z):
+            raise EvaluationError("the simulation produced a non-finite torso position")
+        x, y, _ = (float(v) for v in backend.root_position())
+        time_walked = steps * self._period
+        return EpisodeResult(
+            distance=x - x0,
+            drift=y - y0,
+            time_walked=time_walked,
+            fell=fell,
+            fall_time=self.settings.lock + time_walked if fell else self.settings.duration,
+            height_min=height_min,
+            height_max=height_max,
+            trajectory=_trajectory(rows) if record else None,
+        )
+
+
+def _trajectory(rows: list[list[float]]) -> dict[str, np.ndarray]:
+    table = np.array(rows, dtype=float).reshape(-1, 5 + 2 * len(DRIVEN_JOINTS))
+    names = ["time", "x", "y", "z", "tilt"]
+    names += [f"{j}_target" for j in DRIVEN_JOINTS] + [f"{j}_angle" for j in DRIVEN_JOINTS]
+    return {name: table[:, i] for i, name in enumerate(names)}

@@ -1,0 +1,177 @@
+"""MuJoCo physics backend: builds an MJCF model from a RobotDescription and drives it.
+
+Each hinge gets a velocity actuator (force = KV * (command - joint speed), limited to
+±max_joint_torque), the analogue of the ODE hinge motor of rcssserver3d; the implicit-fast
+integrator keeps that stiff damping stable. The state (time, qpos, qvel, act, ctrl, warm start)
+is saved and restored with mj_getState/mj_setState, which reproduces a run bit for bit.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+from xml.sax.saxutils import quoteattr
+
+import mujoco
+import numpy as np
+
+from metaopt.errors import EvaluationError
+from metaopt.physics import (
+    PhysicsBackend,
+    PhysicsSettings,
+    RobotDescription,
+    servo_velocities,
+)
+from metaopt_problems.physics.mujoco_backend import DEFAULT_SUBSTEPS
+
+#: Velocity-servo gain, N·m per rad/s: stiff enough that the torque limit, not the gain,
+#: decides how fast a joint follows its command (as ODE's motor constraint does).
+KV = 20.0
+#: Rotor inertia added to every hinge, kg·m². Without it the servo and the tiny mass-carrier
+#: spheres (I ~ 5e-6) set up a ±1° rocking limit cycle; stability needs about
+#: KV * timestep / ARMATURE <= 5 (so 0.02 at 4 substeps; see docs/nao-walk.md).
+ARMATURE = 0.02
+_STATE = mujoco.mjtState.mjSTATE_INTEGRATION
+
+
+def _vec(values) -> str:
+    return " ".join(f"{v:.10g}" for v in values)
+
+
+def _geom(body, with_collision: bool) -> str:
+    shape = body.shape
+    if shape.kind == "box":
+        size = [s / 2 for s in shape.size]
+    elif shape.kind == "sphere":
+        size = list(shape.size)
+    else:
+        size = [shape.size[0], shape.size[1] / 2]
+    collide = 'contype="1" conaffinity="0"' if with_collision else 'contype="0" conaffinity="0"'
+    group = 0 if with_collision else 1
+    return f'<geom type="{shape.kind}" size="{_vec(size)}" {collide} group="{group}"/>'
+
+
+def mjcf(robot: RobotDescription, settings: PhysicsSettings) -> str:
+    """The MJCF text of robot on a ground plane (generated, never edited by hand)."""
+    children: dict[str, list] = {}
+    for body in robot.bodies[1:]:
+        children.setdefault(body.parent, []).append(body)
+
+    def body_xml(body, parent_center) -> str:
+        pos = [c - p for c, p in zip(body.center, parent_center, strict=True)]
+        parts = [f'<body name={quoteattr(body.name)} pos="{_vec(pos)}">']
+        if body.parent is None:
+            parts.append('<freejoint name="root"/>')
+        else:
+            h = robot.hinge_of(body.name)
+            anchor = [a - c for a, c in zip(h.anchor, body.center, strict=True)]
+            parts.append(
+                f'<joint name={quoteattr(h.name)} pos="{_vec(anchor)}" axis="{_vec(h.axis)}" '
+                f'range="{h.lower:.10g} {h.upper:.10g}"/>'
+            )
+        parts.append(f'<inertial pos="0 0 0" mass="{body.mass:.10g}" '
+                     f'diaginertia="{_vec(body.inertia)}"/>')  # fmt: skip
+        parts.append(_geom(body, body.collides))
+        parts += [body_xml(child, body.center) for child in children.get(body.name, [])]
+        parts.append("</body>")
+        return "\n".join(parts)
+
+    root = robot.root
+    actuators = "\n".join(
+        f'<velocity name={quoteattr(h.name)} joint={quoteattr(h.name)} kv="{KV}" '
+        f'forcerange="{-settings.max_joint_torque} {settings.max_joint_torque}"/>'
+        for h in robot.hinges
+    )
+    mu = settings.friction
+    return f"""<mujoco model={quoteattr(robot.name)}>
+<compiler angle="radian" autolimits="true"/>
+<option timestep="{settings.timestep(DEFAULT_SUBSTEPS):.10g}" integrator="implicitfast"
+        gravity="0 0 -9.81"/>
+<default><joint armature="{ARMATURE}" limited="true"/>
+<geom friction="{mu} 0.005 0.0001"/></default>
+<worldbody>
+<geom name="floor" type="plane" size="0 0 1" contype="0" conaffinity="1"/>
+{body_xml(root, (0.0, 0.0, -robot.start_height))}
+</worldbody>
+<actuator>
+{actuators}
+</actuator>
+</mujoco>"""
+
+
+class MujocoBackend(PhysicsBackend):
+    """The robot in MuJoCo; velocity commands are written to data.ctrl once per control period."""
+
+    restores_exactly = True
+
+    def __init__(self, robot: RobotDescription, settings: PhysicsSettings) -> None:
+        super().__init__(robot, settings)
+        self.model = mujoco.MjModel.from_xml_string(mjcf(robot, settings))
+        self.data = mujoco.MjData(self.model)
+        self._substeps = settings.substeps or DEFAULT_SUBSTEPS
+        n = len(robot.hinges)
+        self._angles = self.data.qpos[7 : 7 + n]
+        self._angles_view = self._angles.view()
+        self._angles_view.flags.writeable = False
+        self._command = np.zeros(n)
+        self._root_position = self.data.qpos[0:3]
+        self._root_quaternion = self.data.qpos[3:7]
+        self._rotation = np.zeros(9)
+        self._feet = [self.model.body(name).id for name in robot.contact_bodies]
+        self._bad = self.data.warning[mujoco.mjtWarning.mjWARN_BADQACC]
+        self._force = np.zeros(6)
+        self.reset()
+
+    def reset(self) -> None:
+        mujoco.mj_resetData(self.model, self.data)
+        self.data.qpos[2] = self.robot.start_height
+        self._angles[:] = self.robot.rest_angles
+        mujoco.mj_forward(self.model, self.data)
+
+    def step(self, joint_targets: np.ndarray) -> None:
+        servo_velocities(joint_targets, self._angles, self.settings, self._command)
+        self.data.ctrl[:] = self._command
+        unstable_before = self._bad.number
+        mujoco.mj_step(self.model, self.data, self._substeps)
+        if self._bad.number != unstable_before:
+            raise EvaluationError(
+                f"MuJoCo simulation became unstable at t = {self.data.time:.3f} s"
+            )
+
+    def joint_angles(self) -> np.ndarray:
+        return self._angles_view
+
+    # The root is read from qpos, not xpos/xmat: after mj_step those still hold the pose from
+    # before the last integration, so a restored state would read differently.
+    def root_position(self) -> np.ndarray:
+        return self._root_position
+
+    def root_rotation(self) -> np.ndarray:
+        mujoco.mju_quat2Mat(self._rotation, self._root_quaternion)
+        return self._rotation.reshape(3, 3)
+
+    def body_position(self, name: str) -> np.ndarray:
+        mujoco.mj_kinematics(self.model, self.data)
+        return self.data.xpos[self.model.body(name).id].copy()
+
+    def contact_forces(self) -> np.ndarray:
+        forces = np.zeros(len(self._feet))
+        for i in range(self.data.ncon):
+            contact = self.data.contact[i]
+            body = self.model.geom_bodyid[contact.geom]
+            for k, foot in enumerate(self._feet):
+                if foot in body:
+                    mujoco.mj_contactForce(self.model, self.data, i, self._force)
+                    forces[k] += self._force[0]
+        return forces
+
+    def time(self) -> float:
+        return self.data.time
+
+    def save_state(self) -> Any:
+        state = np.empty(mujoco.mj_stateSize(self.model, _STATE))
+        mujoco.mj_getState(self.model, self.data, state, _STATE)
+        return state
+
+    def restore_state(self, state: Any) -> None:
+        mujoco.mj_setState(self.model, self.data, state, _STATE)
+        mujoco.mj_forward(self.model, self.data)

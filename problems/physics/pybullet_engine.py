@@ -1,0 +1,190 @@
+"""PyBullet physics backend: builds a URDF from a RobotDescription and drives it.
+
+Each hinge is driven with VELOCITY_CONTROL and a force limit, PyBullet's analogue of the ODE
+hinge motor of rcssserver3d. One stepSimulation call advances a control period in ``substeps``
+sub-steps (setPhysicsEngineParameter numSubSteps). Every instance has its own DIRECT client.
+"""
+
+from __future__ import annotations
+
+import os
+import tempfile
+from typing import Any
+from xml.sax.saxutils import quoteattr
+
+import numpy as np
+import pybullet
+
+from metaopt.errors import EvaluationError
+from metaopt.physics import (
+    Body,
+    PhysicsBackend,
+    PhysicsSettings,
+    RobotDescription,
+    servo_velocities,
+)
+from metaopt_problems.physics.pybullet_backend import DEFAULT_SUBSTEPS
+
+
+def _vec(values) -> str:
+    return " ".join(f"{v:.10g}" for v in values)
+
+
+def _geometry(body: Body) -> str:
+    shape = body.shape
+    if shape.kind == "box":
+        return f'<box size="{_vec(shape.size)}"/>'
+    if shape.kind == "sphere":
+        return f'<sphere radius="{shape.size[0]:.10g}"/>'
+    return f'<capsule radius="{shape.size[0]:.10g}" length="{shape.size[1]:.10g}"/>'
+
+
+def urdf(robot: RobotDescription) -> str:
+    """The URDF text of robot (generated, never edited by hand).
+
+    Each link's frame sits on the hinge that carries it (the root's at its centre), axes
+    parallel to the world's in the construction pose.
+    """
+    origin = {robot.root.name: robot.root.center}
+    for h in robot.hinges:
+        origin[h.child] = h.anchor
+    parts = [f"<robot name={quoteattr(robot.name)}>"]
+    for body in robot.bodies:
+        at = _vec(c - o for c, o in zip(body.center, origin[body.name], strict=True))
+        ixx, iyy, izz = body.inertia
+        parts.append(
+            f'<link name={quoteattr(body.name)}><inertial><origin xyz="{at}"/>'
+            f'<mass value="{body.mass:.10g}"/><inertia ixx="{ixx:.10g}" iyy="{iyy:.10g}" '
+            f'izz="{izz:.10g}" ixy="0" ixz="0" iyz="0"/></inertial>'
+        )
+        if body.collides:
+            parts.append(
+                f'<collision><origin xyz="{at}"/><geometry>{_geometry(body)}</geometry></collision>'
+            )
+        parts.append("</link>")
+    for h in robot.hinges:
+        offset = _vec(a - o for a, o in zip(h.anchor, origin[h.parent], strict=True))
+        parts.append(
+            f'<joint name={quoteattr(h.name)} type="revolute">'
+            f"<parent link={quoteattr(h.parent)}/><child link={quoteattr(h.child)}/>"
+            f'<origin xyz="{offset}"/><axis xyz="{_vec(h.axis)}"/>'
+            f'<limit lower="{h.lower:.10g}" upper="{h.upper:.10g}" effort="10" velocity="10"/>'
+            "</joint>"
+        )
+    parts.append("</robot>")
+    return "\n".join(parts)
+
+
+class PybulletBackend(PhysicsBackend):
+    """The robot in its own PyBullet DIRECT client."""
+
+    restores_exactly = True
+
+    def __init__(self, robot: RobotDescription, settings: PhysicsSettings) -> None:
+        super().__init__(robot, settings)
+        self._client = pybullet.connect(pybullet.DIRECT)
+        substeps = settings.substeps or DEFAULT_SUBSTEPS
+        self._substeps = substeps
+        self._call = dict(physicsClientId=self._client)
+        pybullet.setGravity(0, 0, -9.81, **self._call)
+        pybullet.setTimeStep(settings.control_period, **self._call)
+        pybullet.setPhysicsEngineParameter(numSubSteps=substeps, **self._call)
+        plane = pybullet.createCollisionShape(pybullet.GEOM_PLANE, **self._call)
+        self._plane = pybullet.createMultiBody(0, plane, **self._call)
+        with tempfile.NamedTemporaryFile("w", suffix=".urdf", delete=False) as file:
+            file.write(urdf(robot))
+        try:
+            self._robot = pybullet.loadURDF(
+                file.name, flags=pybullet.URDF_USE_INERTIA_FROM_FILE, **self._call
+            )
+        finally:
+            os.unlink(file.name)
+        link_of = {robot.root.name: -1}
+        for index in range(pybullet.getNumJoints(self._robot, **self._call)):
+            info = pybullet.getJointInfo(self._robot, index, **self._call)
+            link_of[info[12].decode()] = index
+        self._links = link_of
+        self._joints = [link_of[h.child] for h in robot.hinges]
+        self._feet = [link_of[name] for name in robot.contact_bodies]
+        for link in link_of.values():
+            pybullet.changeDynamics(
+                self._robot, link, lateralFriction=settings.friction, linearDamping=0.0,
+                angularDamping=0.0, **self._call,
+            )  # fmt: skip
+        pybullet.changeDynamics(self._plane, -1, lateralFriction=1.0, **self._call)
+        n = len(robot.hinges)
+        self._angles = np.zeros(n)
+        self._command = np.zeros(n)
+        self._forces = [settings.max_joint_torque] * n
+        self._steps = 0
+        self._pose: tuple = ((0.0, 0.0, 0.0), (0.0, 0.0, 0.0, 1.0))
+        self.reset()
+
+    def reset(self) -> None:
+        call = self._call
+        pybullet.resetBasePositionAndOrientation(
+            self._robot, (0.0, 0.0, self.robot.start_height), (0.0, 0.0, 0.0, 1.0), **call
+        )
+        pybullet.resetBaseVelocity(self._robot, (0, 0, 0), (0, 0, 0), **call)
+        for joint, rest in zip(self._joints, self.robot.rest_angles, strict=True):
+            pybullet.resetJointState(self._robot, joint, float(rest), 0.0, **call)
+        self._steps = 0
+        self._read()
+
+    def _read(self) -> None:
+        """Refresh the cached joint angles and root pose after a change of state."""
+        states = pybullet.getJointStates(self._robot, self._joints, **self._call)
+        self._angles[:] = [s[0] for s in states]
+        self._pose = pybullet.getBasePositionAndOrientation(self._robot, **self._call)
+
+    def step(self, joint_targets: np.ndarray) -> None:
+        servo_velocities(joint_targets, self._angles, self.settings, self._command)
+        pybullet.setJointMotorControlArray(
+            self._robot, self._joints, pybullet.VELOCITY_CONTROL,
+            targetVelocities=self._command.tolist(), forces=self._forces, **self._call,
+        )  # fmt: skip
+        pybullet.stepSimulation(**self._call)
+        self._steps += 1
+        self._read()
+        if not np.isfinite(self._pose[0][2]) or abs(self._pose[0][2]) > 1e3:
+            raise EvaluationError(f"PyBullet simulation became unstable at t = {self.time():.3f} s")
+
+    def joint_angles(self) -> np.ndarray:
+        return self._angles
+
+    def root_position(self) -> np.ndarray:
+        return np.asarray(self._pose[0])
+
+    def root_rotation(self) -> np.ndarray:
+        return np.reshape(pybullet.getMatrixFromQuaternion(self._pose[1]), (3, 3))
+
+    def body_position(self, name: str) -> np.ndarray:
+        link = self._links[name]
+        if link < 0:
+            return self.root_position()
+        return np.asarray(pybullet.getLinkState(self._robot, link, **self._call)[0])
+
+    def contact_forces(self) -> np.ndarray:
+        # PyBullet reports the last sub-step's impulse divided by the whole control period.
+        return np.array(
+            [
+                self._substeps * sum(c[9] for c in pybullet.getContactPoints(
+                    self._robot, self._plane, foot, -1, **self._call))
+                for foot in self._feet
+            ]
+        )  # fmt: skip
+
+    def time(self) -> float:
+        return self._steps * self.settings.control_period
+
+    def save_state(self) -> Any:
+        return (pybullet.saveState(**self._call), self._steps)
+
+    def restore_state(self, state: Any) -> None:
+        state_id, self._steps = state
+        pybullet.restoreState(stateId=state_id, **self._call)
+        self._read()
+
+    def close(self) -> None:
+        if pybullet.isConnected(self._client):
+            pybullet.disconnect(self._client)

@@ -1,0 +1,150 @@
+"""The walking episode: determinism (in and across processes, restored or fresh), fall
+detection, metrics, fitness formulas, and the nao-walk problem end to end."""
+
+from __future__ import annotations
+
+import json
+import math
+import pickle
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from metaopt import ConfigError, EvaluationError, Sense
+from metaopt.physics import PhysicsSettings
+from metaopt.plugins import registry
+from metaopt_problems.nao_walk.episode import (
+    FALL_PENALTY,
+    EpisodeResult,
+    EpisodeRunner,
+    EpisodeSettings,
+    SineGait,
+    fitness,
+)
+from metaopt_problems.nao_walk.robot import nao
+
+BACKENDS = ("mujoco", "pybullet")
+SHORT = EpisodeSettings(duration=4.0, lock=1.0)
+REPO = Path(__file__).resolve().parents[1]
+
+
+class SitDown(SineGait):
+    """Throws both thighs forward: the robot falls on its back."""
+
+    def step(self, left_hip: float, right_hip: float) -> tuple[float, ...]:
+        return (1.5, 0.0, 0.0, 1.5, 0.0, 0.0)
+
+
+class Diverging(SineGait):
+    def step(self, left_hip: float, right_hip: float) -> tuple[float, ...]:
+        return (math.inf, 0.0, 0.0, 0.0, 0.0, 0.0)
+
+
+def runner(backend: str, settings: EpisodeSettings = SHORT) -> EpisodeRunner:
+    engine = registry().physics_backend(backend).factory(nao(), PhysicsSettings())
+    return EpisodeRunner(engine, settings)
+
+
+def metrics_in_this_process(backend: str) -> dict[str, float]:
+    """The sine gait's short episode, run twice on one runner (the second from the restored
+    lock phase); the subprocess test compares these numbers across processes."""
+    episode = runner(backend)
+    first = episode.run(SineGait()).metrics()
+    assert episode.run(SineGait()).metrics() == first
+    return first
+
+
+@pytest.mark.parametrize("backend", BACKENDS)
+def test_same_metrics_in_another_process(backend: str) -> None:
+    here = metrics_in_this_process(backend)
+    code = (
+        "import json; from tests.test_nao_episode import metrics_in_this_process as m; "
+        f"print(json.dumps(m({backend!r})))"
+    )
+    out = subprocess.run(
+        [sys.executable, "-c", code], cwd=REPO, capture_output=True, text=True, check=True
+    )
+    assert json.loads(out.stdout.strip().splitlines()[-1]) == here
+
+
+@pytest.mark.parametrize("backend", BACKENDS)
+def test_restored_lock_phase_equals_a_fresh_run_bit_for_bit(backend: str) -> None:
+    cached = runner(backend)
+    cached.run(SineGait(period=0.4))  # simulates and stores the lock phase
+    restored = cached.run(SineGait(), record=True)
+    fresh = runner(backend).run(SineGait(), record=True)
+    assert restored.metrics() == fresh.metrics()
+    for name, column in fresh.trajectory.items():
+        assert np.array_equal(restored.trajectory[name], column), name
+
+
+@pytest.mark.parametrize("backend", BACKENDS)
+def test_a_fall_is_detected_and_ends_the_episode(backend: str) -> None:
+    result = runner(backend).run(SitDown(), record=True)
+    assert result.fell
+    assert 0 < result.time_walked < SHORT.duration - SHORT.lock
+    assert result.fall_time == pytest.approx(SHORT.lock + result.time_walked)
+    assert len(result.trajectory["time"]) == round(result.time_walked / 0.02)
+    z, tilt = result.trajectory["z"], result.trajectory["tilt"]
+    assert z[-1] < SHORT.fall_height or tilt[-1] > SHORT.fall_tilt  # stopped at the fall ...
+    assert np.all((z[:-1] >= SHORT.fall_height) & (tilt[:-1] <= SHORT.fall_tilt))  # ... not before
+
+
+@pytest.mark.parametrize("backend", BACKENDS)
+def test_metrics_are_consistent(backend: str) -> None:
+    result = runner(backend).run(SineGait(), record=True)
+    assert not result.fell and result.fall_time == SHORT.duration
+    assert result.time_walked == pytest.approx(SHORT.duration - SHORT.lock)
+    metrics = result.metrics()
+    assert metrics["speed"] == pytest.approx(metrics["distance"] / metrics["time_walked"])
+    assert metrics["height_range"] == pytest.approx(metrics["height_max"] - metrics["height_min"])
+    z = result.trajectory["z"]
+    assert metrics["height_min"] <= z.min() and metrics["height_max"] >= z.max()
+
+
+def test_a_diverging_controller_is_an_evaluation_error() -> None:
+    with pytest.raises(EvaluationError, match="not finite"):
+        runner("mujoco").run(Diverging())
+
+
+def _result(distance: float, drift: float, fell: bool, fall_time: float) -> EpisodeResult:
+    return EpisodeResult(distance, drift, fall_time - 3.0, fell, fall_time, 0.3, 0.4)
+
+
+def test_robust_fitness_never_rewards_a_fall() -> None:
+    walked = fitness(_result(1.0, -0.2, False, 15.0), "robust", 15.0)
+    assert walked == pytest.approx(0.8)
+    for progress in (-2.0, 0.0, 1.0):
+        scores = [fitness(_result(progress, 0.0, True, t), "robust", 15.0) for t in (4, 10, 14.9)]
+        assert scores == sorted(scores)  # a later fall is better
+        assert scores[-1] <= progress - FALL_PENALTY  # and always worse than stopping upright
+
+
+def test_paper_fitness_is_eq_9_as_printed() -> None:
+    assert fitness(_result(1.0, 0.5, False, 15.0), "paper", 15.0) == pytest.approx(0.5)
+    assert fitness(_result(1.0, 0.0, True, 11.0), "paper", 15.0) == pytest.approx(0.25)
+    # its flaw: a fall 0.5 s before the end doubles the score
+    assert fitness(_result(1.0, 0.0, True, 14.5), "paper", 15.0) == pytest.approx(2.0)
+
+
+def test_problem_rejects_unknown_backend_and_bad_timing() -> None:
+    info = registry().problem("nao-walk")
+    with pytest.raises(ConfigError, match="Installed: mujoco, pybullet"):
+        info.factory(backend="ode")
+    with pytest.raises(ConfigError, match="lock"):
+        info.factory(duration=3.0, lock=3.0)
+
+
+def test_problem_evaluates_end_to_end_and_pickles() -> None:
+    problem = registry().problem("nao-walk").factory(duration=5.0)
+    assert problem.sense is Sense.MAXIMIZE and problem.space.dim == 10
+    x = (problem.space.lower + problem.space.upper) / 2
+    first = problem.evaluate(x, seed=1)
+    assert problem.evaluate(x, seed=2) == first  # the seed does not matter: no noise
+    assert set(problem.key_metrics) <= set(first.metrics)
+    copy = pickle.loads(pickle.dumps(problem))
+    assert copy.evaluate(x, seed=1) == first
+    problem.close()
