@@ -13,8 +13,9 @@ from metaopt import display
 from metaopt.errors import MetaoptError
 from metaopt.export import FORMATS, export_run
 from metaopt.plugins import registry
+from metaopt.replay import replay_best
 from metaopt.run_loop import RunSpec, run
-from metaopt.settings import split_settings
+from metaopt.settings import parse_problem_settings, split_settings
 from metaopt.store import DEFAULT_DB, RunStore
 
 console = Console()
@@ -180,6 +181,30 @@ def export_command(run_id: str, fmt: str, output: str | None, db_path: str) -> N
             with open(output, "w", newline="") as handle:
                 count = export_run(store, run_id, fmt, handle)
             errors.print(f"wrote {count} evaluations to {output}")
+
+
+@main.command("replay")
+@click.argument("run_id")
+@click.option("--backend", default=None, help="Physics engine to replay on [the run's own].")
+@click.option("--set", "settings", multiple=True, metavar="NAME=VALUE",
+              help="Change a problem parameter for the replay.")  # fmt: skip
+@db_option
+def replay_command(
+    run_id: str, backend: str | None, settings: tuple[str, ...], db_path: str
+) -> None:
+    """Re-run a stored run's best candidate and compare with what was stored."""
+    _require_store(db_path)
+    plugins = registry()
+    with RunStore(db_path) as store:
+        run_record = store.run(run_id)
+        problem_info = plugins.problem(run_record.problem)
+        pairs = [*settings, *([f"backend={backend}"] if backend is not None else [])]
+        overrides = parse_problem_settings(pairs, problem_info)
+        result = replay_best(store, run_id, plugins, overrides)
+    console.print(display.replay_table(result))
+    if result.replayed is None:
+        errors.print(f"The replay failed: {result.error}")
+        sys.exit(1)
 
 
 def _require_store(db_path: str) -> None:

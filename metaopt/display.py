@@ -18,6 +18,7 @@ from rich.progress import (
 from rich.table import Table
 
 from metaopt.params import Param
+from metaopt.replay import Replay
 from metaopt.run_loop import RunResult
 from metaopt.store import EvaluationRecord, RunRecord
 
@@ -125,6 +126,37 @@ def result_table(result: RunResult, db_path: str, seed: int) -> Table:
 def _shown_metrics(metrics: dict[str, float], key_metrics: Sequence[str]) -> list[str]:
     keys = [k for k in key_metrics if k in metrics]
     return keys + [k for k in metrics if k not in keys]
+
+
+def replay_table(replay: Replay) -> Table:
+    """`metaopt replay`: stored best metrics beside the replayed ones."""
+    changed = {
+        k: v for k, v in replay.problem_params.items() if replay.run.problem_params.get(k) != v
+    }
+    setting = ", ".join(f"{k}={v}" for k, v in changed.items()) or "as stored"
+    table = Table(
+        title=f"run {replay.run.id}, evaluation {replay.stored.index} replayed ({setting})",
+        title_justify="left",
+    )
+    table.add_column("")
+    table.add_column("stored", justify="right")
+    table.add_column("replayed", justify="right")
+    replayed = replay.replayed
+    table.add_row(
+        "fitness",
+        format_number(replay.stored.fitness),
+        format_number(replayed.fitness) if replayed else "failed",
+    )
+    names = list(replay.stored.metrics) + [
+        k for k in (replayed.metrics if replayed else {}) if k not in replay.stored.metrics
+    ]
+    for name in names:
+        table.add_row(
+            name,
+            format_number(replay.stored.metrics.get(name)),
+            format_number(replayed.metrics.get(name)) if replayed else "-",
+        )
+    return table
 
 
 def runs_table(runs: Sequence[RunRecord], counts: dict[int, tuple[int, int]], best) -> Table:

@@ -43,6 +43,23 @@ def split_settings(
     return optimizer_params, problem_params
 
 
+def parse_problem_settings(pairs: Iterable[str], problem: ProblemInfo) -> dict[str, Any]:
+    """Parse NAME=VALUE strings into problem parameters only (for replays)."""
+    declared = {p.name: p for p in problem.params}
+    params: dict[str, Any] = {}
+    for pair in pairs:
+        name, sep, text = pair.partition("=")
+        if not sep or not name.strip():
+            raise ConfigError(
+                f"--set expects NAME=VALUE, got {pair!r} (e.g. --set backend=pybullet)"
+            )
+        for prefix in (*_PROBLEM_PREFIXES, f"{problem.name}."):
+            name = name.strip().removeprefix(prefix)
+        _must_declare("problem", problem.name, name, declared)
+        params[name] = declared[name].parse(text.strip(), f"problem {problem.name!r}")
+    return params
+
+
 def _target(
     name: str,
     optimizer: OptimizerInfo,

@@ -89,7 +89,7 @@ class Space:
         """
         x = np.asarray(x, dtype=float)
         if method == "clip":
-            return np.clip(x, self.lower, self.upper)
+            return x.clip(self.lower, self.upper)
         if method == "reflect":
             # Fold onto a period of 2*width; robust to values many widths away.
             offset = np.mod(x - self.lower, 2.0 * self.width)

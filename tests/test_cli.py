@@ -74,3 +74,17 @@ def test_foreign_db_file_is_refused_and_kept(tmp_path):
                        env=BASIC)  # fmt: skip
     assert done.returncode == 2 and "not a SQLite database" in done.stderr
     assert precious.read_bytes() == b"not a database at all"
+
+
+def test_replay_reproduces_the_stored_best_and_rejects_foreign_settings(tmp_path):
+    metaopt_cli("run", "-o", "ga", "-p", "rastrigin", "--budget", "300", "--seed", "2",
+                cwd=tmp_path, env=BASIC)  # fmt: skip
+    stored = metaopt_cli("export", "1", "--format", "json", cwd=tmp_path, env=BASIC)
+    best = min(e["fitness"] for e in json.loads(stored.stdout)["evaluations"])
+    replayed = metaopt_cli("replay", "1", cwd=tmp_path, env=BASIC)
+    assert replayed.returncode == 0, replayed.stderr
+    fitness_row = next(line for line in replayed.stdout.splitlines() if "fitness" in line)
+    assert fitness_row.count(f"{best:.6g}") == 2  # stored and replayed agree
+    wrong = metaopt_cli("replay", "1", "--backend", "pybullet", cwd=tmp_path, env=BASIC)
+    assert wrong.returncode == 2
+    assert "problem 'rastrigin' has no parameter 'backend'" in wrong.stderr

@@ -25,6 +25,7 @@ from metaopt_problems.nao_walk.episode import (
     fitness,
 )
 from metaopt_problems.nao_walk.robot import nao
+from tests.conftest import metaopt_cli
 
 BACKENDS = ("mujoco", "pybullet")
 SHORT = EpisodeSettings(duration=4.0, lock=1.0)
@@ -148,3 +149,17 @@ def test_problem_evaluates_end_to_end_and_pickles() -> None:
     copy = pickle.loads(pickle.dumps(problem))
     assert copy.evaluate(x, seed=1) == first
     problem.close()
+
+
+def test_cli_run_then_replay_on_the_other_engine(tmp_path):
+    """`metaopt run` on nao-walk, then `metaopt replay --backend pybullet` of its best gait."""
+    done = metaopt_cli("run", "-o", "random", "-p", "nao-walk", "--budget", "3", "--seed", "5",
+                       "--set", "duration=4", "--set", "lock=1", cwd=tmp_path)  # fmt: skip
+    assert done.returncode == 0, done.stderr
+    assert "distance" in done.stdout and "tau1" in done.stdout
+    replayed = metaopt_cli("replay", "1", "--backend", "pybullet", cwd=tmp_path)
+    assert replayed.returncode == 0, replayed.stderr
+    assert "backend=pybullet" in replayed.stdout and "distance" in replayed.stdout
+    unknown = metaopt_cli("replay", "1", "--backend", "bullet", cwd=tmp_path)
+    assert unknown.returncode == 2
+    assert "unknown physics backend 'bullet'" in unknown.stderr and "mujoco" in unknown.stderr

@@ -17,6 +17,7 @@ from metaopt.physics import PhysicsSettings
 from metaopt.plugins import registry
 from metaopt.problem import Evaluation, Problem, ProblemInfo, Sense
 
+from .controller import MatsuokaCpg, cpg_space
 from .episode import FITNESS_KINDS, EpisodeRunner, EpisodeSettings, Gait, fitness
 from .robot import nao
 
@@ -61,9 +62,6 @@ class NaoWalk(Problem):
                 f"nao-walk: lock ({lock} s) must be shorter than duration ({duration} s)"
             )
         self.backend_info = registry().physics_backend(backend)
-        # Imported here: the controller (and its numerics) loads only when a problem is built.
-        from .controller import cpg_space
-
         self.space = cpg_space()
         self.fitness_kind = fitness
         self.physics = PhysicsSettings(substeps=substeps, servo_gain=servo_gain)
@@ -86,8 +84,6 @@ class NaoWalk(Problem):
 
     def gait(self, x: np.ndarray) -> Gait:
         """The CPG controller for decision vector x (space order)."""
-        from .controller import MatsuokaCpg
-
         return MatsuokaCpg(
             [float(v) for v in x],
             hip_limits=self._limits["llj3"],

@@ -1,0 +1,55 @@
+"""Re-evaluating a stored run's best candidate, on the same problem settings or changed ones."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+from metaopt.errors import ConfigError, StoreError
+from metaopt.params import resolve
+from metaopt.plugins import Registry
+from metaopt.problem import Evaluation
+from metaopt.run_loop import evaluate_safely
+from metaopt.store import EvaluationRecord, RunRecord, RunStore
+
+
+@dataclass
+class Replay:
+    """The stored best evaluation beside its re-evaluation."""
+
+    run: RunRecord
+    stored: EvaluationRecord
+    problem_params: dict[str, Any]
+    replayed: Evaluation | None
+    error: str
+
+
+def replay_best(
+    store: RunStore, run_id: int | str, plugins: Registry, overrides: dict[str, Any]
+) -> Replay:
+    """Evaluate run ``run_id``'s best candidate again with its seed.
+
+    ``overrides`` changes problem parameters (e.g. ``{"backend": "pybullet"}``); everything else
+    is as stored with the run.
+    """
+    run = store.run(run_id)
+    best = store.best_evaluation(run)
+    if best is None:
+        raise StoreError(f"run {run.id} has no successful evaluation to replay")
+    info = plugins.problem(run.problem)
+    declared = {p.name for p in info.params}
+    for name in overrides:
+        if name not in declared:
+            raise ConfigError(
+                f"problem {run.problem!r} has no parameter {name!r}; "
+                f"accepted: {', '.join(sorted(declared)) or 'none'}"
+            )
+    params = resolve(info.params, {**run.problem_params, **overrides}, info.name)
+    problem = info.factory(**params)
+    try:
+        evaluation, error = evaluate_safely(problem, np.asarray(best.x), best.seed)
+    finally:
+        problem.close()
+    return Replay(run, best, params, evaluation, error)
