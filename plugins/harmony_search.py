@@ -22,7 +22,7 @@ Out-of-bound values are repaired by ``Space.repair`` (``repair``: clip or reflec
 
 Defaults (hms 20, hmcr 0.9, par 0.3, bandwidth 0.01) reach about 1e-4 on the 10-D sphere
 ([-5.12, 5.12]) in 20,000 evaluations, and mostly below 0.05 on 10-D Rastrigin. For ``ihs``
-and ``ghs`` set ``budget`` to the run's budget: their schedules span it.
+and ``ghs`` the schedules span ``budget``, which the run loop sets to the run's budget.
 """
 
 from __future__ import annotations

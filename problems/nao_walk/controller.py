@@ -1,6 +1,6 @@
 """The paper's walking controller: a Matsuoka pair (eqs 1-4) and the linear layer of Fig. 3.
 
-Units and conventions (docs/nao-walk-controller.md explains them):
+Units and conventions (docs/nao-walk.md, "The controller", explains them):
 
 * time constants tau1, tau2 are in control steps of 20 ms;
 * the oscillator's outputs feed linear neurons whose weights and biases give joint angles in
