@@ -45,15 +45,20 @@ def params_table(title: str, params: Sequence[Param]) -> Table:
 
 
 def plugin_overview(kind: str, infos: Sequence, sources: Sequence[str]) -> Table:
-    """One row per plugin of a kind: name, summary, parameter names, where it comes from."""
+    """Every plugin of a kind: its name, summary and source, then each parameter's name, type,
+    default, range and meaning."""
     table = Table(title=kind, title_justify="left")
-    table.add_column("name", style="bold cyan", no_wrap=True)
-    table.add_column("summary")
-    table.add_column("parameters (name=default)", overflow="fold")
-    table.add_column("from", style="dim")
+    table.add_column("name / parameter", no_wrap=True)
+    table.add_column("type")
+    table.add_column("default")
+    table.add_column("range", overflow="fold")
+    table.add_column("summary / meaning", overflow="fold")
     for info, source in zip(infos, sources):
-        params = ", ".join(f"{p.name}={p.default}" for p in getattr(info, "params", ()))
-        table.add_row(info.name, info.summary, params or "-", source)
+        summary = f"{info.summary} [dim](from {source})[/]"
+        table.add_row(f"[bold cyan]{info.name}[/]", "", "", "", summary)
+        for p in getattr(info, "params", ()):
+            table.add_row(f"  {p.name}", p.type_name, str(p.default), p.range_text(), p.help)
+        table.add_section()
     return table
 
 
