@@ -1,8 +1,9 @@
 """Episode throughput per physics backend: how close the episode loop runs to the engine's limit.
 
 For each backend, prints simulated seconds per wall second for
-  * episodes: full 15 s episodes of a fixed walking gait (SineGait), the lock phase simulated
-    once and restored, as nao-walk evaluates candidates;
+  * episodes: full 15 s episodes of a fixed walking gait (the Matsuoka CPG with the stored HS
+    gait, problems/nao_walk/gaits/hs_walk.json), the lock phase simulated once and restored,
+    as nao-walk evaluates candidates;
   * physics: the same engine replaying the same joint targets open-loop from the same restored
     state, with no controller, metrics or fall checks (the limit: what the engine alone costs
     for exactly the same motion);
@@ -28,13 +29,10 @@ import numpy as np
 
 from metaopt.physics import PhysicsSettings
 from metaopt.plugins import registry
-from metaopt_problems.nao_walk.episode import (
-    DRIVEN_JOINTS,
-    EpisodeRunner,
-    EpisodeSettings,
-    SineGait,
-)
+from metaopt_problems.nao_walk.episode import DRIVEN_JOINTS, EpisodeRunner, EpisodeSettings
+from metaopt_problems.nao_walk.plugin import NaoWalk
 from metaopt_problems.nao_walk.robot import nao
+from metaopt_problems.nao_walk.stored_gaits import gait_vector, load_gait
 
 
 def measure(backend: str, episodes: int) -> dict[str, float]:
@@ -42,7 +40,8 @@ def measure(backend: str, episodes: int) -> dict[str, float]:
     alternately so that load from other processes hits both alike."""
     engine = registry().physics_backend(backend).factory(nao(), PhysicsSettings())
     runner = EpisodeRunner(engine, EpisodeSettings())
-    recorded = runner.run(SineGait(), record=True)  # also simulates and stores the lock phase
+    gait = NaoWalk(backend=backend).gait(gait_vector(load_gait()))
+    recorded = runner.run(gait, record=True)  # also simulates and stores the lock phase
     assert not recorded.fell, "the reference gait should walk the whole episode"
     sequence = np.tile(engine.robot.rest_angles, (len(recorded.trajectory["time"]), 1))
     for name in DRIVEN_JOINTS:
@@ -51,7 +50,7 @@ def measure(backend: str, episodes: int) -> dict[str, float]:
     episode_wall = physics_wall = float("inf")
     for _ in range(episodes):
         start = time.perf_counter()
-        runner.run(SineGait())
+        runner.run(gait)
         episode_wall = min(episode_wall, time.perf_counter() - start)
         start = time.perf_counter()
         engine.restore_state(lock_state)

@@ -12,16 +12,14 @@ must equal the stored ones, whatever they are.
 from __future__ import annotations
 
 import importlib.metadata
-import json
 import math
-from importlib.resources import files
 
-import numpy as np
 import pytest
 
 from metaopt.params import resolve
 from metaopt.plugins import registry
 from metaopt_problems.nao_walk.controller import PARAM_NAMES
+from metaopt_problems.nao_walk.stored_gaits import gait_vector, load_gait
 
 MIN_DISTANCE = 0.75
 """m over the 12 s walking phase: about 90% of the 0.840 m the gait reaches (and at least 0.5)."""
@@ -30,18 +28,12 @@ MAX_DRIFT = 0.01
 """m, |lateral displacement| over the walking phase; the gait drifts 0.003 m."""
 
 
-def _stored() -> dict:
-    path = files("metaopt_problems.nao_walk") / "gaits" / "hs_walk.json"
-    return json.loads(path.read_text(encoding="utf-8"))
-
-
 def _evaluate(gait: dict, backend: str) -> dict[str, float]:
     info = registry().problem("nao-walk")
     params = resolve(info.params, {"backend": backend}, "nao-walk")
     problem = info.factory(**params)
     try:
-        x = np.array([gait["parameters"][name] for name in PARAM_NAMES])
-        return dict(problem.evaluate(x, seed=gait["found_by"]["seed"]).metrics)
+        return dict(problem.evaluate(gait_vector(gait), seed=gait["found_by"]["seed"]).metrics)
     finally:
         problem.close()
 
@@ -62,7 +54,7 @@ def _assert_equal_record(
 
 
 def test_stored_gait_is_complete_and_found_with_the_defaults() -> None:
-    gait = _stored()
+    gait = load_gait()
     assert list(gait["parameters"]) == list(PARAM_NAMES)
     info = registry().problem("nao-walk")
     assert gait["problem_params"] == resolve(info.params, {}, "nao-walk")
@@ -72,7 +64,7 @@ def test_stored_gait_is_complete_and_found_with_the_defaults() -> None:
 
 
 def test_stored_gait_walks_on_mujoco() -> None:
-    gait = _stored()
+    gait = load_gait()
     metrics = _evaluate(gait, "mujoco")
     assert metrics["fell"] == 0
     assert metrics["time_walked"] == pytest.approx(12.0)
@@ -84,7 +76,7 @@ def test_stored_gait_walks_on_mujoco() -> None:
 
 
 def test_stored_gait_on_pybullet_matches_its_record() -> None:
-    gait = _stored()
+    gait = load_gait()
     metrics = _evaluate(gait, "pybullet")
     _assert_equal_record(
         metrics, gait["metrics"]["pybullet"], "pybullet", gait["engine_versions"]["pybullet"]
