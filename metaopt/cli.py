@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import os
 import secrets
 import sys
 from pathlib import Path
@@ -10,11 +11,21 @@ import click
 from rich.console import Console
 
 from metaopt import display
-from metaopt.errors import MetaoptError
+from metaopt.errors import ConfigError, MetaoptError
+from metaopt.executors import Executor, SerialExecutor
 from metaopt.export import FORMATS, export_run
 from metaopt.plugins import registry
 from metaopt.replay import replay_best
-from metaopt.run_loop import RunSpec, run
+from metaopt.run_loop import (
+    AGGREGATES,
+    MODES,
+    RunInterrupted,
+    RunResult,
+    RunSettings,
+    RunSpec,
+    resume,
+    run,
+)
 from metaopt.settings import parse_problem_settings, split_settings
 from metaopt.store import DEFAULT_DB, RunStore
 
@@ -81,6 +92,36 @@ def list_plugins(name: str | None) -> None:
     raise AssertionError("unreachable")
 
 
+def scheduling_options(command):
+    """Options that choose where evaluations run (not stored: results never depend on them
+    in sync mode)."""
+    options = [
+        click.option("--executor", default=None,
+                     help="serial, process or dask (or a plugin's) [serial; process with "
+                          "--workers > 1; dask with --scheduler]"),
+        click.option("--workers", type=click.IntRange(min=1), default=None,
+                     help="Parallel evaluations [all cores for process/dask]."),
+        click.option("--scheduler", default=None, metavar="tcp://HOST:PORT",
+                     help="Join this Dask scheduler (implies --executor dask)."),
+    ]  # fmt: skip
+    for option in reversed(options):
+        command = option(command)
+    return command
+
+
+def build_executor(name: str | None, workers: int | None, scheduler: str | None) -> Executor:
+    """The executor the user asked for, with one clear error for a bad combination."""
+    if name is None and scheduler is None and (workers or 1) == 1:
+        return SerialExecutor()  # the default needs no plugin
+    if name is None:
+        name = "dask" if scheduler else ("process" if workers and workers > 1 else "serial")
+    if scheduler and name != "dask":
+        raise ConfigError(f"--scheduler is for the dask executor, not {name!r}")
+    info = registry().executor(name)
+    default_workers = 1 if name == "serial" else (os.cpu_count() or 1)
+    return info.factory(workers or default_workers, scheduler)
+
+
 @main.command("run")
 @click.option("--optimizer", "-o", "optimizer_name", required=True, help="Optimizer name.")
 @click.option("--problem", "-p", "problem_name", required=True, help="Problem name.")
@@ -93,6 +134,40 @@ def list_plugins(name: str | None) -> None:
     metavar="NAME=VALUE",
     help="A plugin parameter; qualify as optimizer.NAME or problem.NAME when both have it.",
 )
+@click.option(
+    "--mode",
+    type=click.Choice(MODES),
+    default="sync",
+    show_default=True,
+    help="sync: reproducible batches; async: keep every worker busy (steady-state).",
+)
+@click.option(
+    "--batch",
+    type=click.IntRange(min=0),
+    default=0,
+    help="sync: candidates per batch [the optimizer's own; e.g. 1 for hs].",
+)
+@click.option(
+    "--resample",
+    type=click.IntRange(min=1),
+    default=1,
+    show_default=True,
+    help="Evaluations per candidate, each with its own seed.",
+)
+@click.option(
+    "--aggregate",
+    type=click.Choice(tuple(AGGREGATES)),
+    default="mean",
+    show_default=True,
+    help="How resampled fitnesses combine.",
+)
+@click.option(
+    "--time-limit",
+    type=float,
+    default=None,
+    help="Seconds per evaluation before it is stopped and stored as failed.",
+)
+@scheduling_options
 @db_option
 def run_command(
     optimizer_name: str,
@@ -100,9 +175,17 @@ def run_command(
     budget: int | None,
     seed: int | None,
     settings: tuple[str, ...],
+    mode: str,
+    batch: int,
+    resample: int,
+    aggregate: str,
+    time_limit: float | None,
+    executor: str | None,
+    workers: int | None,
+    scheduler: str | None,
     db_path: str,
 ) -> None:
-    """Run an optimizer on a problem, storing every evaluation."""
+    """Run an optimizer on a problem, storing every evaluation."""  # fmt: skip
     plugins = registry()
     optimizer_info = plugins.optimizer(optimizer_name)
     problem_info = plugins.problem(problem_name)
@@ -114,26 +197,64 @@ def run_command(
         seed=secrets.randbelow(2**31) if seed is None else seed,
         optimizer_params=optimizer_params,
         problem_params=problem_params,
+        settings=RunSettings(mode, batch, resample, aggregate, time_limit),
     )
     if spec.budget < 1:
         raise click.BadParameter(f"must be at least 1, got {spec.budget}", param_hint="--budget")
+    spec.settings.check(spec.budget)
     with RunStore(db_path) as store:
         label = f"{optimizer_name} on {problem_name}"
-        try:
-            with display.RichProgress(console, label) as progress:
-                result = run(spec, optimizer_info, problem_info, store, progress)
-        except KeyboardInterrupt:
-            errors.print(
-                f"Interrupted. Every finished evaluation is stored in {db_path}; "
-                "see it with: metaopt runs --db " + str(db_path)
-            )
-            sys.exit(130)
-        console.print(display.result_table(result, str(db_path), spec.seed))
-        if result.failed:
-            console.print(
-                f"[yellow]{result.failed} evaluation(s) failed; their errors are stored "
-                f"(metaopt export {result.run_id} --format csv).[/]"
-            )
+        pool = build_executor(executor, workers, scheduler)
+        result = _with_progress(
+            label, db_path,
+            lambda progress: run(spec, optimizer_info, problem_info, store, progress, pool),
+        )  # fmt: skip
+        _print_result(result, db_path, spec.seed)
+
+
+@main.command("resume")
+@click.argument("run_id")
+@scheduling_options
+@db_option
+def resume_command(
+    run_id: str, executor: str | None, workers: int | None, scheduler: str | None, db_path: str
+) -> None:
+    """Continue a run that was interrupted or killed, from its last checkpoint."""
+    _require_store(db_path)
+    plugins = registry()
+    with RunStore(db_path) as store:
+        record = store.run(run_id)
+        optimizer_info = plugins.optimizer(record.optimizer)
+        problem_info = plugins.problem(record.problem)
+        pool = build_executor(executor, workers, scheduler)
+        label = f"{record.optimizer} on {record.problem} (resumed)"
+        result = _with_progress(
+            label, db_path,
+            lambda progress: resume(record.id, store, optimizer_info, problem_info, progress, pool),
+        )  # fmt: skip
+        _print_result(result, db_path, record.seed)
+
+
+def _with_progress(label: str, db_path: str, start) -> RunResult:
+    """Run with a progress bar; Ctrl-C/SIGTERM ends with one line on how to resume."""
+    try:
+        with display.RichProgress(console, label) as progress:
+            return start(progress)
+    except RunInterrupted as stop:
+        errors.print(
+            f"Interrupted: run {stop.run_id} stopped with {stop.stored} evaluations stored in "
+            f"{db_path}. Resume with: metaopt resume {stop.run_id} --db {db_path}"
+        )
+        sys.exit(130)
+
+
+def _print_result(result: RunResult, db_path: str, seed: int) -> None:
+    console.print(display.result_table(result, str(db_path), seed))
+    if result.failed:
+        console.print(
+            f"[yellow]{result.failed} evaluation(s) failed; their errors are stored "
+            f"(metaopt export {result.run_id} --format csv).[/]"
+        )
 
 
 @main.command("runs")
@@ -202,8 +323,8 @@ def replay_command(
         overrides = parse_problem_settings(pairs, problem_info)
         result = replay_best(store, run_id, plugins, overrides)
     console.print(display.replay_table(result))
-    if result.replayed is None:
-        errors.print(f"The replay failed: {result.error}")
+    if result.replayed.fitness is None:
+        errors.print(f"The replay failed: {result.replayed.error}")
         sys.exit(1)
 
 

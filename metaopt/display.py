@@ -147,19 +147,20 @@ def replay_table(replay: Replay) -> Table:
     table.add_column("stored", justify="right")
     table.add_column("replayed", justify="right")
     replayed = replay.replayed
+    failed = replayed.fitness is None
     table.add_row(
         "fitness",
         format_number(replay.stored.fitness),
-        format_number(replayed.fitness) if replayed else "failed",
+        "failed" if failed else format_number(replayed.fitness),
     )
     names = list(replay.stored.metrics) + [
-        k for k in (replayed.metrics if replayed else {}) if k not in replay.stored.metrics
+        k for k in replayed.metrics if k not in replay.stored.metrics
     ]
     for name in names:
         table.add_row(
             name,
             format_number(replay.stored.metrics.get(name)),
-            format_number(replayed.metrics.get(name)) if replayed else "-",
+            "-" if failed else format_number(replayed.metrics.get(name)),
         )
     return table
 

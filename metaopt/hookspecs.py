@@ -29,6 +29,15 @@ def metaopt_problems() -> list:
 
 
 @hookspec
+def metaopt_executors() -> list:
+    """Return ways to run evaluations, as a list of ``metaopt.executors.ExecutorInfo``.
+
+    An executor takes ``EvaluationTask`` objects and returns ``concurrent.futures.Future``
+    objects of ``Outcome`` (e.g. local processes, Dask; an outside package could add Ray or MPI).
+    """
+
+
+@hookspec
 def metaopt_physics_backends() -> list:
     """Return physics engines for robot problems, as a list of ``metaopt.physics.BackendInfo``.
 

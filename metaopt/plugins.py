@@ -43,6 +43,7 @@ class Registry:
         self.physics_backends = self._collect(
             manager.hook.metaopt_physics_backends, "physics backend"
         )
+        self.executors = self._collect(manager.hook.metaopt_executors, "executor")
 
     def _collect(self, hook: pluggy.HookCaller, kind: str) -> dict[str, Any]:
         found: dict[str, Any] = {}
@@ -72,6 +73,10 @@ class Registry:
     def problem(self, name: str):
         """The ProblemInfo called name, or a ConfigError with close matches."""
         return _lookup(self.problems, name, "problem")
+
+    def executor(self, name: str):
+        """The ExecutorInfo called name, or a ConfigError listing the installed ones."""
+        return _lookup(self.executors, name, "executor")
 
     def physics_backend(self, name: str):
         """The BackendInfo called name, or a ConfigError listing the installed ones."""

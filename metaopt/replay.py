@@ -8,10 +8,9 @@ from typing import Any
 import numpy as np
 
 from metaopt.errors import ConfigError, StoreError
+from metaopt.executors import EvaluationTask, Outcome, adopt_problem, evaluate_task
 from metaopt.params import resolve
 from metaopt.plugins import Registry
-from metaopt.problem import Evaluation
-from metaopt.run_loop import evaluate_safely
 from metaopt.store import EvaluationRecord, RunRecord, RunStore
 
 
@@ -22,8 +21,7 @@ class Replay:
     run: RunRecord
     stored: EvaluationRecord
     problem_params: dict[str, Any]
-    replayed: Evaluation | None
-    error: str
+    replayed: Outcome
 
 
 def replay_best(
@@ -48,8 +46,10 @@ def replay_best(
             )
     params = resolve(info.params, {**run.problem_params, **overrides}, info.name)
     problem = info.factory(**params)
+    task = EvaluationTask(best.index, np.asarray(best.x), best.seed, info.factory, params)
     try:
-        evaluation, error = evaluate_safely(problem, np.asarray(best.x), best.seed)
+        with adopt_problem(info.factory, params, problem):
+            outcome = evaluate_task(task)
     finally:
         problem.close()
-    return Replay(run, best, params, evaluation, error)
+    return Replay(run, best, params, outcome)

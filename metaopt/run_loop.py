@@ -1,27 +1,47 @@
-"""The run loop: asks the optimizer, evaluates, stores, reports progress, and owns the budget.
+"""The run loop: asks the optimizer, has an executor evaluate, stores every evaluation, tells
+the results, and owns budget, seeds, checkpoints, progress and interruption.
 
-Optimizers and problems never touch processes, files or the terminal; this module does, through
-a RunStore and an optional Progress observer.
+Optimizers and problems never touch processes, files or the terminal; this module does,
+through an Executor, a RunStore and an optional Progress observer.
+
+Modes: ``sync`` asks a fixed batch, evaluates it (on any executor), and tells the results in
+index order, so a run depends only on its seed and settings. ``async`` keeps every worker busy:
+a steady-state optimizer is asked for a new candidate whenever one finishes; faster, but the
+order of results (and so the run) depends on timing.
 """
 
 from __future__ import annotations
 
 import math
+import signal
+import statistics
 import time
-from dataclasses import dataclass, field
+from collections.abc import Iterator
+from concurrent.futures import FIRST_COMPLETED, Future, as_completed, wait
+from contextlib import contextmanager
+from dataclasses import asdict, dataclass, field
 from typing import Any, Protocol
 
 import numpy as np
 
 from metaopt.errors import ConfigError
+from metaopt.executors import (
+    EvaluationTask,
+    Executor,
+    Outcome,
+    SerialExecutor,
+    adopt_problem,
+)
 from metaopt.optimizer import Optimizer, OptimizerInfo
 from metaopt.params import resolve
-from metaopt.problem import Evaluation, Problem, ProblemInfo, Sense
+from metaopt.problem import Problem, ProblemInfo, Sense
 from metaopt.seeding import EvaluationSeeds
-from metaopt.store import RunStore
+from metaopt.store import EvaluationRecord, RunRecord, RunStore
 from metaopt.versions import environment_versions
 
 CHECKPOINT_INTERVAL = 1.0
+MODES = ("sync", "async")
+AGGREGATES = {"mean": statistics.fmean, "median": statistics.median}
 
 
 class Progress(Protocol):
@@ -35,8 +55,40 @@ class Progress(Protocol):
 
 
 @dataclass
+class RunSettings:
+    """How evaluations are scheduled; stored with the run so a resume continues alike."""
+
+    mode: str = "sync"
+    #: sync mode: candidates asked per batch (0 = the optimizer's preferred batch size).
+    batch: int = 0
+    #: evaluations per candidate, each with its own seed; the fitness is aggregated.
+    resample: int = 1
+    aggregate: str = "mean"
+    #: seconds an evaluation may take before it is stopped and stored as failed (None = no limit)
+    time_limit: float | None = None
+
+    def check(self, budget: int) -> None:
+        """ConfigError naming the bad setting."""
+        if self.mode not in MODES:
+            raise ConfigError(f"unknown mode {self.mode!r}; accepted: {', '.join(MODES)}")
+        if self.aggregate not in AGGREGATES:
+            raise ConfigError(f"unknown aggregate {self.aggregate!r}; accepted: mean, median")
+        if self.batch < 0:
+            raise ConfigError(f"batch must be 0 (the optimizer's own) or more, got {self.batch}")
+        if self.resample < 1:
+            raise ConfigError(f"resample must be at least 1, got {self.resample}")
+        if budget < self.resample:
+            raise ConfigError(
+                f"budget {budget} is smaller than resample {self.resample}: "
+                "not one candidate could be evaluated"
+            )
+        if self.time_limit is not None and not self.time_limit > 0:
+            raise ConfigError(f"time limit must be positive seconds, got {self.time_limit}")
+
+
+@dataclass
 class RunSpec:
-    """Everything that defines a run: plugins, their parameters, budget and seed."""
+    """Everything that defines a run: plugins, their parameters, budget, seed and scheduling."""
 
     optimizer: str
     problem: str
@@ -44,11 +96,13 @@ class RunSpec:
     seed: int
     optimizer_params: dict[str, Any] = field(default_factory=dict)
     problem_params: dict[str, Any] = field(default_factory=dict)
+    settings: RunSettings = field(default_factory=RunSettings)
 
 
 @dataclass
 class RunResult:
-    """What a finished (or interrupted) run reports."""
+    """What a finished (or interrupted) run reports. With resampling, fitness and metrics are
+    the best candidate's aggregates."""
 
     run_id: int
     status: str
@@ -62,29 +116,13 @@ class RunResult:
     key_metrics: tuple[str, ...]
 
 
-@dataclass
-class _Best:
-    """Best successful evaluation so far, in the optimizer's (minimizing) terms."""
+class RunInterrupted(KeyboardInterrupt):
+    """Ctrl-C or SIGTERM stopped a run; everything finished is stored."""
 
-    score: float = math.inf
-    fitness: float | None = None
-    x: np.ndarray | None = None
-    metrics: dict[str, float] = field(default_factory=dict)
-
-
-def evaluate_safely(problem: Problem, x: np.ndarray, seed: int) -> tuple[Evaluation | None, str]:
-    """Run problem.evaluate; a raised error or a non-finite fitness becomes (None, reason)."""
-    try:
-        evaluation = problem.evaluate(x, seed)
-        fitness = float(evaluation.fitness)
-    except (KeyboardInterrupt, SystemExit):
-        raise
-    except Exception as error:  # a plugin's failure on one candidate must not end the run
-        return None, f"{type(error).__name__}: {error}"
-    if not math.isfinite(fitness):
-        return None, f"fitness is {fitness}"
-    evaluation.fitness = fitness
-    return evaluation, ""
+    def __init__(self, run_id: int, stored: int) -> None:
+        super().__init__(f"run {run_id} interrupted with {stored} evaluations stored")
+        self.run_id = run_id
+        self.stored = stored
 
 
 def run(
@@ -93,22 +131,30 @@ def run(
     problem_info: ProblemInfo,
     store: RunStore,
     progress: Progress | None = None,
+    executor: Executor | None = None,
 ) -> RunResult:
     """Run spec.optimizer on spec.problem for spec.budget evaluations, storing each one.
 
     Parameters are validated against the plugins' declarations first (ConfigError on bad input).
-    Ctrl-C marks the run 'interrupted' (everything finished is stored) and re-raises.
+    Ctrl-C or SIGTERM marks the run 'interrupted' and raises RunInterrupted.
     """
     if spec.budget < 1:
         raise ConfigError(f"budget must be a positive number of evaluations, got {spec.budget}")
+    spec.settings.check(spec.budget)
     given = dict(spec.optimizer_params)
     if any(p.name == "budget" for p in optimizer_info.params):
-        given.setdefault("budget", spec.budget)  # schedules (e.g. IHS) follow the run's budget
+        # Schedules (e.g. IHS) span the candidates the optimizer will be told.
+        given.setdefault("budget", spec.budget // spec.settings.resample)
     optimizer_params = resolve(optimizer_info.params, given, optimizer_info.name)
     problem_params = resolve(problem_info.params, spec.problem_params, problem_info.name)
     problem = problem_info.factory(**problem_params)
     try:
         optimizer = optimizer_info.factory(problem.space, spec.seed, **optimizer_params)
+        if spec.settings.mode == "async" and not optimizer.steady_state:
+            raise ConfigError(
+                f"optimizer {optimizer_info.name!r} is generational, not steady-state: it "
+                "cannot run in async mode; use --mode sync (e.g. with --workers N)"
+            )
         run_id = store.create_run(
             optimizer=optimizer_info.name,
             optimizer_params=optimizer_params,
@@ -118,81 +164,331 @@ def run(
             budget=spec.budget,
             sense=Sense(problem.sense).value,
             space=problem.space.to_json(),
+            settings=asdict(spec.settings),
             versions=environment_versions(),
         )
-        return _loop(run_id, spec, optimizer, problem, store, progress)
+        session = _Session(run_id, spec, optimizer, problem, problem_info, store, problem_params)
+        with adopt_problem(problem_info.factory, problem_params, problem):
+            return session.execute(executor or SerialExecutor(), progress)
     finally:
         problem.close()
 
 
-def _loop(
-    run_id: int,
-    spec: RunSpec,
-    optimizer: Optimizer,
-    problem: Problem,
+def resume(
+    run_id: int | str,
     store: RunStore,
-    progress: Progress | None,
+    optimizer_info: OptimizerInfo,
+    problem_info: ProblemInfo,
+    progress: Progress | None = None,
+    executor: Executor | None = None,
 ) -> RunResult:
-    sign = -1.0 if Sense(problem.sense) is Sense.MAXIMIZE else 1.0
-    evaluation_seed = EvaluationSeeds(spec.seed)
-    best = _Best()
-    done = told = failed = 0
-    started = time.perf_counter()
-    last_checkpoint = started
-    if progress is not None:
-        progress.start(spec.budget, done)
-    status, message = "failed", None
-    try:
-        while done < spec.budget:
-            batch = optimizer.ask(min(optimizer.batch_size, spec.budget - done))
-            scores = np.empty(len(batch))
-            for row, x in enumerate(batch):
-                seed = evaluation_seed(done)
-                tick = time.perf_counter()
-                evaluation, error = evaluate_safely(problem, x, seed)
-                wall = time.perf_counter() - tick
-                if evaluation is None:
-                    failed += 1
-                    scores[row] = math.inf
-                    store.add_evaluation(run_id, done, x, None, None, error, seed, wall)
-                else:
-                    score = sign * evaluation.fitness
-                    scores[row] = score
-                    if score < best.score:
-                        best = _Best(score, evaluation.fitness, x.copy(), evaluation.metrics)
-                    store.add_evaluation(
-                        run_id, done, x, evaluation.fitness, evaluation.metrics, None, seed, wall
-                    )
-                done += 1
-            optimizer.tell(batch, scores)
-            told = done
-            now = time.perf_counter()
-            if now - last_checkpoint >= CHECKPOINT_INTERVAL:
-                store.flush(checkpoint=(run_id, told, optimizer.state_dict()))
-                last_checkpoint = now
-            if progress is not None:
-                progress.update(done, best.fitness)
-        status = "finished"
-    except KeyboardInterrupt:
-        status, message = "interrupted", "stopped by the user"
-        raise
-    except BaseException as error:
-        message = f"{type(error).__name__}: {error}"
-        raise
-    finally:
-        wall_time = time.perf_counter() - started
-        # The state matches the evaluations told so far; later ones are stored but untold.
-        store.flush(checkpoint=(run_id, told, optimizer.state_dict()))
-        store.finish_run(run_id, status, wall_time, message)
-    return RunResult(
-        run_id=run_id,
-        status=status,
-        evaluations=done,
-        failed=failed,
-        best_fitness=best.fitness,
-        best_x=best.x,
-        best_metrics=best.metrics,
-        wall_time=wall_time,
-        names=problem.space.names,
-        key_metrics=tuple(problem.key_metrics),
+    """Continue a stored run that did not finish, from its last checkpoint.
+
+    In sync mode evaluations stored after the checkpoint are reused, not recomputed, so the
+    resumed run ends exactly where an uninterrupted one would.
+    """
+    record = store.run(run_id)
+    if record.status == "finished":
+        raise ConfigError(f"run {record.id} already finished; nothing to resume")
+    spec = RunSpec(
+        optimizer=record.optimizer,
+        problem=record.problem,
+        budget=record.budget,
+        seed=record.seed,
+        optimizer_params=record.optimizer_params,
+        problem_params=record.problem_params,
+        settings=RunSettings(**record.settings),
     )
+    problem = problem_info.factory(**record.problem_params)
+    try:
+        optimizer = optimizer_info.factory(problem.space, record.seed, **record.optimizer_params)
+        checkpoint = record.checkpoint or {"state": None, "told_below": 0, "told_extra": []}
+        if checkpoint["state"] is not None:
+            optimizer.load_state_dict(checkpoint["state"])
+        store.mark_running(record.id)
+        session = _Session(
+            record.id, spec, optimizer, problem, problem_info, store, record.problem_params
+        )
+        session.restore(record, checkpoint)
+        with adopt_problem(problem_info.factory, record.problem_params, problem):
+            return session.execute(executor or SerialExecutor(), progress)
+    finally:
+        problem.close()
+
+
+@dataclass
+class _Candidate:
+    """A candidate being evaluated: its samples' outcomes as they come back."""
+
+    number: int
+    x: np.ndarray
+    outcomes: list[Outcome | None]
+
+    @property
+    def complete(self) -> bool:
+        return all(o is not None for o in self.outcomes)
+
+
+class _Session:
+    """One run's loop state: counters, best so far, checkpoints."""
+
+    def __init__(
+        self,
+        run_id: int,
+        spec: RunSpec,
+        optimizer: Optimizer,
+        problem: Problem,
+        problem_info: ProblemInfo,
+        store: RunStore,
+        problem_params: dict[str, Any],
+    ) -> None:
+        self.run_id = run_id
+        self.spec = spec
+        self.settings = spec.settings
+        self.optimizer = optimizer
+        self.problem = problem
+        self.store = store
+        self.factory = problem_info.factory
+        self.problem_params = problem_params
+        self.sign = -1.0 if Sense(problem.sense) is Sense.MAXIMIZE else 1.0
+        self.seeds = EvaluationSeeds(spec.seed)
+        self.resample = self.settings.resample
+        self.total = (spec.budget // self.resample) * self.resample
+        self.told_below = 0  # every candidate whose evaluations all lie below this is told
+        self.told_extra: set[int] = set()  # candidates told beyond told_below (async)
+        self.stored = self.failed = 0
+        self.best_score = math.inf
+        self.best: tuple[float, np.ndarray, dict[str, float]] | None = None
+        self.reusable: dict[int, EvaluationRecord] = {}
+        self.last_checkpoint = time.perf_counter()
+
+    # -- resume ----------------------------------------------------------------------------
+
+    def restore(self, record: RunRecord, checkpoint: dict) -> None:
+        """Counters, best so far and reusable evaluations from the store."""
+        self.told_below = checkpoint["told_below"]
+        self.told_extra = set(checkpoint["told_extra"])
+        by_candidate: dict[int, list[EvaluationRecord]] = {}
+        for evaluation in self.store.evaluations(record.id):
+            self.stored += 1
+            self.failed += evaluation.status == "failed"
+            by_candidate.setdefault(evaluation.candidate, []).append(evaluation)
+        for number, evaluations in by_candidate.items():
+            if len(evaluations) == self.resample and self._was_told(number):
+                outcomes = [_outcome_of(e) for e in evaluations]
+                self._score(_Candidate(number, evaluations[0].x, outcomes))
+            elif not self._was_told(number):
+                self.reusable.update((e.index, e) for e in evaluations)
+        self.stored -= len(self.reusable)  # counted again when reused
+
+    def _was_told(self, number: int) -> bool:
+        return (number + 1) * self.resample <= self.told_below or number in self.told_extra
+
+    # -- the loop --------------------------------------------------------------------------
+
+    def execute(self, executor: Executor, progress: Progress | None) -> RunResult:
+        started = time.perf_counter()
+        status, message = "failed", None
+        if progress is not None:
+            progress.start(self.total, self.stored)
+        try:
+            with _stop_on_sigterm():
+                if self.settings.mode == "sync":
+                    self._run_sync(executor, progress)
+                else:
+                    self._run_async(executor, progress)
+            status = "finished"
+        except KeyboardInterrupt:
+            status, message = "interrupted", "stopped by the user (Ctrl-C or SIGTERM)"
+            raise RunInterrupted(self.run_id, self.stored) from None
+        except BaseException as error:
+            message = f"{type(error).__name__}: {error}"
+            raise
+        finally:
+            executor.shutdown()
+            # A checkpoint is only ever taken right after a tell: an interrupted run keeps its
+            # last one, and the evaluations stored since are reused when it is resumed.
+            final = (self.run_id, self._checkpoint()) if status == "finished" else None
+            self.store.flush(checkpoint=final)
+            self.store.finish_run(self.run_id, status, time.perf_counter() - started, message)
+        return self._result(status, time.perf_counter() - started)
+
+    def _run_sync(self, executor: Executor, progress: Progress | None) -> None:
+        batch_size = self.settings.batch or self.optimizer.batch_size
+        next_index = self.told_below
+        while next_index < self.total:
+            count = min(batch_size, (self.total - next_index) // self.resample)
+            candidates = [
+                _Candidate(next_index // self.resample + i, x, [None] * self.resample)
+                for i, x in enumerate(self.optimizer.ask(count))
+            ]
+            futures = self._submit(executor, candidates)
+            self._collect(futures, candidates)
+            scores = np.array([self._score(c) for c in candidates])
+            self.optimizer.tell(np.array([c.x for c in candidates]), scores)
+            next_index += count * self.resample
+            self.told_below = next_index
+            self._after_tell(progress)
+
+    def _run_async(self, executor: Executor, progress: Progress | None) -> None:
+        in_flight: dict[Future, _Candidate] = {}
+        open_candidates = self._unfinished_candidates()
+        next_index = max([self.told_below, *((c.number + 1) * self.resample
+                                              for c in open_candidates)])  # fmt: skip
+        for candidate in open_candidates:
+            if candidate.complete:
+                self._tell_one(candidate, progress)
+            else:
+                in_flight.update(self._submit(executor, [candidate]))
+        while in_flight or next_index < self.total:
+            while len(in_flight) < executor.workers and next_index < self.total:
+                x = self.optimizer.ask(1)[0]
+                candidate = _Candidate(next_index // self.resample, x, [None] * self.resample)
+                in_flight.update(self._submit(executor, [candidate]))
+                next_index += self.resample
+            done, _ = wait(list(in_flight), return_when=FIRST_COMPLETED)
+            for future in done:
+                candidate = in_flight.pop(future)
+                self._record(candidate, future.result())
+                if candidate.complete:
+                    self._tell_one(candidate, progress)
+
+    def _tell_one(self, candidate: _Candidate, progress: Progress | None) -> None:
+        self.optimizer.tell(candidate.x[None, :], np.array([self._score(candidate)]))
+        self.told_extra.add(candidate.number)
+        self._advance_told_below()
+        self._after_tell(progress)
+
+    def _unfinished_candidates(self) -> list[_Candidate]:
+        """Resumed async runs: candidates stored but not told, with their stored outcomes."""
+        grouped: dict[int, _Candidate] = {}
+        for index, evaluation in sorted(self.reusable.items()):
+            number = index // self.resample
+            candidate = grouped.setdefault(
+                number, _Candidate(number, evaluation.x, [None] * self.resample)
+            )
+            candidate.outcomes[index % self.resample] = _outcome_of(evaluation)
+            self.stored += 1
+        self.reusable.clear()
+        return sorted(grouped.values(), key=lambda c: c.number)
+
+    def _advance_told_below(self) -> None:
+        while self.told_below // self.resample in self.told_extra:
+            self.told_extra.discard(self.told_below // self.resample)
+            self.told_below += self.resample
+
+    def _submit(self, executor: Executor, candidates: list[_Candidate]) -> dict[Future, _Candidate]:
+        """Start every missing sample of the candidates; stored ones (resume) are reused."""
+        futures: dict[Future, _Candidate] = {}
+        for candidate in candidates:
+            for sample in range(self.resample):
+                if candidate.outcomes[sample] is not None:
+                    continue
+                index = candidate.number * self.resample + sample
+                stored = self.reusable.pop(index, None)
+                if stored is not None and stored.x.tobytes() == candidate.x.tobytes():
+                    candidate.outcomes[sample] = _outcome_of(stored)
+                    self.stored += 1
+                    continue
+                task = EvaluationTask(
+                    index, candidate.x, self.seeds(index), self.factory, self.problem_params,
+                    self.settings.time_limit,
+                )  # fmt: skip
+                futures[executor.submit(task)] = candidate
+        return futures
+
+    def _collect(self, futures: dict[Future, _Candidate], candidates: list[_Candidate]) -> None:
+        """Store every outcome as soon as it completes (in-process ones without waiting)."""
+        waiting = []
+        for future, candidate in futures.items():
+            if future.done():
+                self._record(candidate, future.result())
+            else:
+                waiting.append(future)
+        for future in as_completed(waiting):
+            self._record(futures[future], future.result())
+
+    def _record(self, candidate: _Candidate, outcome: Outcome) -> None:
+        candidate.outcomes[outcome.index % self.resample] = outcome
+        self.stored += 1
+        self.failed += outcome.error is not None
+        self.store.add_evaluation(
+            self.run_id, outcome.index, candidate.number, candidate.x, outcome.fitness,
+            outcome.metrics, outcome.error, self.seeds(outcome.index), outcome.wall_time,
+        )  # fmt: skip
+
+    def _score(self, candidate: _Candidate) -> float:
+        """The optimizer's (minimizing) score of a complete candidate, +inf if any sample
+        failed; keeps the best candidate so far."""
+        outcomes = candidate.outcomes
+        if any(o.fitness is None for o in outcomes):
+            return math.inf
+        aggregate = AGGREGATES[self.settings.aggregate]
+        fitness = (
+            outcomes[0].fitness if len(outcomes) == 1 else aggregate([o.fitness for o in outcomes])
+        )
+        score = self.sign * fitness
+        if score < self.best_score:
+            self.best_score = score
+            metrics = outcomes[0].metrics if len(outcomes) == 1 else {
+                name: aggregate([o.metrics[name] for o in outcomes])
+                for name in outcomes[0].metrics
+                if all(name in o.metrics for o in outcomes)
+            }  # fmt: skip
+            self.best = (fitness, candidate.x.copy(), metrics)
+        return score
+
+    def _after_tell(self, progress: Progress | None) -> None:
+        now = time.perf_counter()
+        if now - self.last_checkpoint >= CHECKPOINT_INTERVAL:
+            self.store.flush(checkpoint=(self.run_id, self._checkpoint()))
+            self.last_checkpoint = now
+        if progress is not None:
+            progress.update(self.stored, None if self.best is None else self.best[0])
+
+    def _checkpoint(self) -> dict:
+        return {
+            "state": self.optimizer.state_dict(),
+            "told_below": self.told_below,
+            "told_extra": sorted(self.told_extra),
+        }
+
+    def _result(self, status: str, wall_time: float) -> RunResult:
+        fitness, x, metrics = self.best if self.best is not None else (None, None, {})
+        return RunResult(
+            run_id=self.run_id,
+            status=status,
+            evaluations=self.stored,
+            failed=self.failed,
+            best_fitness=fitness,
+            best_x=x,
+            best_metrics=metrics,
+            wall_time=wall_time,
+            names=self.problem.space.names,
+            key_metrics=tuple(self.problem.key_metrics),
+        )
+
+
+def _outcome_of(evaluation: EvaluationRecord) -> Outcome:
+    return Outcome(
+        evaluation.index, evaluation.fitness, evaluation.metrics, evaluation.error,
+        evaluation.wall_time,
+    )  # fmt: skip
+
+
+@contextmanager
+def _stop_on_sigterm() -> Iterator[None]:
+    """Turn SIGTERM into KeyboardInterrupt while a run goes on (main thread only)."""
+
+    def interrupt(signum: int, frame: object) -> None:
+        raise KeyboardInterrupt
+
+    try:
+        previous = signal.signal(signal.SIGTERM, interrupt)
+    except ValueError:  # not the main thread: leave signals alone
+        yield
+        return
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGTERM, previous)

@@ -38,18 +38,19 @@ CREATE TABLE IF NOT EXISTS runs (
     budget INTEGER NOT NULL,
     sense TEXT NOT NULL,
     space TEXT NOT NULL,
+    settings TEXT NOT NULL,
     versions TEXT NOT NULL,
     started_at TEXT NOT NULL,
     ended_at TEXT,
     status TEXT NOT NULL,
     message TEXT,
     wall_time REAL,
-    optimizer_state TEXT,
-    state_evaluations INTEGER
+    checkpoint TEXT
 );
 CREATE TABLE IF NOT EXISTS evaluations (
     run_id INTEGER NOT NULL REFERENCES runs(id),
     idx INTEGER NOT NULL,
+    candidate INTEGER NOT NULL,
     x BLOB NOT NULL,
     fitness REAL,
     metrics TEXT,
@@ -78,14 +79,17 @@ class RunRecord:
     budget: int
     sense: str
     space: list[dict]
+    settings: dict[str, Any]
     versions: dict[str, str]
     started_at: str
     ended_at: str | None
     status: str
     message: str | None
     wall_time: float | None
-    optimizer_state: dict | None
-    state_evaluations: int | None
+    #: {"state": optimizer state, "told_below": n, "told_extra": [candidate, ...]}: the
+    #: optimizer has been told every candidate whose evaluations all lie below index n, and
+    #: the candidates listed.
+    checkpoint: dict | None
 
 
 @dataclass
@@ -93,6 +97,7 @@ class EvaluationRecord:
     """One stored evaluation. ``fitness`` is None when it failed."""
 
     index: int
+    candidate: int
     x: np.ndarray
     fitness: float | None
     metrics: dict[str, float]
@@ -185,14 +190,15 @@ class RunStore:
         budget: int,
         sense: str,
         space: list[dict],
+        settings: dict[str, Any],
         versions: dict[str, str],
     ) -> int:
         """Insert a new run with status 'running' and return its id."""
         with self._lock, self._transaction():
             cursor = self._connection.execute(
                 "INSERT INTO runs (optimizer, optimizer_params, problem, problem_params, seed, "
-                "budget, sense, space, versions, started_at, status) "
-                "VALUES (?, ?, ?, ?, ?, ?, ?, ?, ?, ?, 'running')",
+                "budget, sense, space, settings, versions, started_at, status) "
+                "VALUES (?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, 'running')",
                 (
                     optimizer,
                     json.dumps(optimizer_params),
@@ -202,6 +208,7 @@ class RunStore:
                     budget,
                     sense,
                     json.dumps(space),
+                    json.dumps(settings),
                     json.dumps(versions),
                     _now(),
                 ),
@@ -212,6 +219,7 @@ class RunStore:
         self,
         run_id: int,
         index: int,
+        candidate: int,
         x: np.ndarray,
         fitness: float | None,
         metrics: dict[str, float] | None,
@@ -223,6 +231,7 @@ class RunStore:
         row = (
             run_id,
             index,
+            candidate,
             np.asarray(x, dtype="<f8").tobytes(),
             fitness,
             json.dumps(metrics) if metrics else None,
@@ -246,22 +255,31 @@ class RunStore:
         while not self._stop.wait(FLUSH_INTERVAL / 2):
             self.flush()
 
-    def flush(self, checkpoint: tuple[int, int, dict] | None = None) -> None:
-        """Commit queued evaluations now; optionally with (run_id, n_evaluations, state)."""
+    def flush(self, checkpoint: tuple[int, dict] | None = None) -> None:
+        """Commit queued evaluations now; optionally with a (run_id, checkpoint) in the same
+        transaction, so the optimizer state never gets ahead of the stored evaluations."""
         with self._lock:
             rows, self._pending = self._pending, []
             if not rows and checkpoint is None:
                 return
             with self._transaction():
                 self._connection.executemany(
-                    "INSERT INTO evaluations VALUES (?, ?, ?, ?, ?, ?, ?, ?, ?, ?)", rows
+                    "INSERT OR REPLACE INTO evaluations VALUES (?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?)",
+                    rows,
                 )
                 if checkpoint is not None:
-                    run_id, n_evaluations, state = checkpoint
+                    run_id, content = checkpoint
                     self._connection.execute(
-                        "UPDATE runs SET optimizer_state = ?, state_evaluations = ? WHERE id = ?",
-                        (json.dumps(state), n_evaluations, run_id),
+                        "UPDATE runs SET checkpoint = ? WHERE id = ?", (json.dumps(content), run_id)
                     )
+
+    def mark_running(self, run_id: int) -> None:
+        """A resumed run is running again."""
+        with self._lock, self._transaction():
+            self._connection.execute(
+                "UPDATE runs SET status = 'running', ended_at = NULL, message = NULL WHERE id = ?",
+                (run_id,),
+            )
 
     def finish_run(
         self, run_id: int, status: str, wall_time: float, message: str | None = None
@@ -315,7 +333,8 @@ class RunStore:
     @staticmethod
     def _run_record(cursor: sqlite3.Cursor, row: tuple) -> RunRecord:
         data = dict(zip([c[0] for c in cursor.description], row))
-        for key in ("optimizer_params", "problem_params", "space", "versions", "optimizer_state"):
+        for key in ("optimizer_params", "problem_params", "space", "settings", "versions",
+                    "checkpoint"):  # fmt: skip
             if data[key] is not None:
                 data[key] = json.loads(data[key])
         return RunRecord(**data)
@@ -325,13 +344,15 @@ class RunStore:
     ) -> Iterator[EvaluationRecord]:
         """A run's stored evaluations with start <= index < stop, in index order."""
         cursor = self._connection.execute(
-            "SELECT idx, x, fitness, metrics, status, error, seed, wall_time, finished_at "
+            "SELECT idx, candidate, x, fitness, metrics, status, error, seed, wall_time, "
+            "finished_at "
             "FROM evaluations WHERE run_id = ? AND idx >= ? AND idx < ? ORDER BY idx",
             (run_id, start, stop if stop is not None else 2**62),
         )
-        for idx, x, fitness, metrics, status, error, seed, wall, finished in cursor:
+        for idx, candidate, x, fitness, metrics, status, error, seed, wall, finished in cursor:
             yield EvaluationRecord(
                 index=idx,
+                candidate=candidate,
                 x=np.frombuffer(x, dtype="<f8").copy(),
                 fitness=fitness,
                 metrics=json.loads(metrics) if metrics else {},

@@ -42,7 +42,8 @@ def test_every_evaluation_is_stored_with_the_run_record(tmp_path):
         assert {"python", "numpy", "metaopt"} <= set(record.versions)
         assert record.ended_at is not None and record.wall_time > 0
         assert store.evaluation_counts(result.run_id) == (123, 0)
-        assert record.state_evaluations == 123 and record.optimizer_state
+        assert record.checkpoint["told_below"] == 123 and record.checkpoint["state"]
+        assert record.settings["mode"] == "sync"
         fitnesses = [e.fitness for e in store.evaluations(result.run_id)]
         assert min(fitnesses) == result.best_fitness
         assert len({e.seed for e in store.evaluations(result.run_id)}) == 123

@@ -18,6 +18,7 @@ def _new_run(store: RunStore) -> int:
         budget=10,
         sense="minimize",
         space=[{"name": "x0", "lower": -1, "upper": 1, "description": ""}],
+        settings={"mode": "sync"},
         versions={"python": "3"},
     )
 
@@ -26,8 +27,8 @@ def test_evaluations_round_trip_exactly(tmp_path):
     x = np.array([0.1, -1 / 3, np.pi])
     with RunStore(tmp_path / "a.db") as store:
         run_id = _new_run(store)
-        store.add_evaluation(run_id, 0, x, 1.25, {"distance": 2.5}, None, 99, 0.01)
-        store.add_evaluation(run_id, 1, x * 2, None, None, "ValueError: boom", 100, 0.02)
+        store.add_evaluation(run_id, 0, 0, x, 1.25, {"distance": 2.5}, None, 99, 0.01)
+        store.add_evaluation(run_id, 1, 1, x * 2, None, None, "ValueError: boom", 100, 0.02)
     with RunStore(tmp_path / "a.db") as store:
         first, second = store.evaluations(run_id)
         assert first.x.tobytes() == x.tobytes()  # bit for bit
@@ -43,7 +44,7 @@ def test_queued_evaluations_are_committed_within_the_flush_interval(tmp_path):
     """A finished evaluation never waits long uncommitted, even when no more follow."""
     store = RunStore(tmp_path / "b.db")
     run_id = _new_run(store)
-    store.add_evaluation(run_id, 0, np.zeros(1), 1.0, None, None, 1, 0.0)
+    store.add_evaluation(run_id, 0, 0, np.zeros(1), 1.0, None, None, 1, 0.0)
     reader = sqlite3.connect(tmp_path / "b.db")
     deadline = time.monotonic() + 4 * FLUSH_INTERVAL
     count = 0
@@ -83,8 +84,8 @@ def test_two_writers_on_one_file_keep_all_their_data(tmp_path):
     first, second = RunStore(path), RunStore(path)
     run_a, run_b = _new_run(first), _new_run(second)
     for i in range(200):
-        first.add_evaluation(run_a, i, np.zeros(1), float(i), None, None, i, 0.0)
-        second.add_evaluation(run_b, i, np.ones(1), float(-i), None, None, i, 0.0)
+        first.add_evaluation(run_a, i, i, np.zeros(1), float(i), None, None, i, 0.0)
+        second.add_evaluation(run_b, i, i, np.ones(1), float(-i), None, None, i, 0.0)
     first.close()
     second.close()
     with RunStore(path) as store:

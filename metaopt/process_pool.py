@@ -1,0 +1,157 @@
+"""Local worker processes that survive their workers: a dead worker's task is retried once on a
+fresh process and then failed with the reason; a task past its time limit is stopped by killing
+its worker. Each worker runs one task at a time, so a death is always traced to its task."""
+
+from __future__ import annotations
+
+import collections
+import contextlib
+import multiprocessing
+import threading
+import time
+from concurrent.futures import Future
+from dataclasses import dataclass
+from multiprocessing.connection import Connection, wait
+
+from metaopt.executors import EvaluationTask, Executor, Outcome, evaluate_task, release_problems
+
+#: How often the manager thread looks at the clock when nothing else happens (time limits).
+POLL_INTERVAL = 0.05
+
+
+def _worker_main(connection: Connection) -> None:
+    """A worker process: evaluate tasks until told to stop (None) or the pipe closes."""
+    import signal
+
+    signal.signal(signal.SIGINT, signal.SIG_IGN)  # Ctrl-C is the parent's to handle
+    try:
+        while True:
+            task = connection.recv()
+            if task is None:
+                break
+            connection.send(evaluate_task(task))
+    except (EOFError, OSError):
+        pass
+    finally:
+        release_problems()
+
+
+@dataclass
+class _Job:
+    task: EvaluationTask
+    future: Future
+    attempt: int = 1
+
+
+class _Worker:
+    """One worker process, its pipe, and the job it is running."""
+
+    def __init__(self, context: multiprocessing.context.BaseContext) -> None:
+        self.connection, child = context.Pipe()
+        self.process = context.Process(target=_worker_main, args=(child,), daemon=True)
+        self.process.start()
+        child.close()
+        self.job: _Job | None = None
+        self.started = 0.0
+
+    def start(self, job: _Job) -> None:
+        self.job, self.started = job, time.monotonic()
+        self.connection.send(job.task)
+
+    def kill(self) -> None:
+        self.process.kill()
+        self.process.join()
+        self.connection.close()
+
+
+class ProcessExecutor(Executor):
+    """N local worker processes (spawned, so no engine state is inherited by fork)."""
+
+    def __init__(self, workers: int) -> None:
+        self.workers = workers
+        self._context = multiprocessing.get_context("spawn")
+        self._lock = threading.Lock()
+        self._queue: collections.deque[_Job] = collections.deque()
+        self._pool = [_Worker(self._context) for _ in range(workers)]
+        self._stopping = False
+        self._manager = threading.Thread(target=self._manage, name="metaopt-pool", daemon=True)
+        self._manager.start()
+
+    def submit(self, task: EvaluationTask) -> Future:
+        future: Future = Future()
+        with self._lock:
+            self._queue.append(_Job(task, future))
+        return future
+
+    def _manage(self) -> None:
+        while not self._stopping:
+            self._assign()
+            busy = [w for w in self._pool if w.job is not None]
+            if not busy:
+                time.sleep(POLL_INTERVAL / 5)
+                continue
+            ready = wait(
+                [w.connection for w in busy] + [w.process.sentinel for w in busy],
+                timeout=POLL_INTERVAL,
+            )
+            for worker in busy:
+                if worker.connection in ready:
+                    self._collect(worker)
+                elif worker.process.sentinel in ready or not worker.process.is_alive():
+                    self._replace_dead(worker)
+                else:
+                    self._enforce_time_limit(worker)
+
+    def _assign(self) -> None:
+        with self._lock:
+            for worker in self._pool:
+                if worker.job is None and self._queue:
+                    worker.start(self._queue.popleft())
+
+    def _collect(self, worker: _Worker) -> None:
+        try:
+            outcome = worker.connection.recv()
+        except (EOFError, OSError):
+            self._replace_dead(worker)
+            return
+        job, worker.job = worker.job, None
+        job.future.set_result(outcome)
+
+    def _replace_dead(self, worker: _Worker) -> None:
+        job = worker.job
+        code = worker.process.exitcode
+        worker.kill()
+        self._pool[self._pool.index(worker)] = _Worker(self._context)
+        if job is None:
+            return
+        if job.attempt == 1:
+            with self._lock:
+                self._queue.appendleft(_Job(job.task, job.future, attempt=2))
+            return
+        reason = f"worker process died twice on this candidate (exit code {code})"
+        job.future.set_result(Outcome(job.task.index, None, error=reason))
+
+    def _enforce_time_limit(self, worker: _Worker) -> None:
+        job = worker.job
+        limit = job.task.time_limit if job else None
+        if limit is None or time.monotonic() - worker.started <= limit:
+            return
+        worker.job = None
+        worker.kill()
+        self._pool[self._pool.index(worker)] = _Worker(self._context)
+        reason = f"EvaluationTimeout: exceeded the time limit of {limit:g} s (worker stopped)"
+        job.future.set_result(Outcome(job.task.index, None, error=reason, wall_time=limit))
+
+    def shutdown(self) -> None:
+        self._stopping = True
+        self._manager.join()
+        for worker in self._pool:
+            if worker.job is None:
+                with contextlib.suppress(OSError):
+                    worker.connection.send(None)
+        for worker in self._pool:
+            worker.process.join(timeout=2)
+            if worker.process.is_alive():
+                worker.kill()
+        for job in self._queue:
+            job.future.cancel()
