@@ -217,7 +217,7 @@ class PhysicsBackend(ABC):
     @abstractmethod
     def reset(self) -> None:
         """Rest pose (every joint at its rest angle) with the root upright at start_height,
-        velocities zero, t = 0."""
+        velocities zero, t = 0, ground friction back to settings.friction."""
 
     @abstractmethod
     def step(self, joint_targets: np.ndarray) -> None:
@@ -249,6 +249,16 @@ class PhysicsBackend(ABC):
     @abstractmethod
     def time(self) -> float:
         """Simulated seconds since reset."""
+
+    @abstractmethod
+    def set_ground_friction(self, mu: float) -> None:
+        """Coefficient of friction between the robot and the ground from now on (until the
+        next call or reset); not part of the saved state."""
+
+    @abstractmethod
+    def push_root(self, velocity: Vec3) -> None:
+        """Add velocity (m/s, world frame) to the root's linear velocity; the joints keep
+        their velocities relative to it, so the whole robot is pushed."""
 
     @abstractmethod
     def save_state(self) -> Any:

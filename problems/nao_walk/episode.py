@@ -2,7 +2,9 @@
 
 One EpisodeRunner per backend: it simulates the lock phase once, keeps the resulting state
 (where the engine restores bit for bit) and starts every episode from it. The walking phase
-stops at a fall. Metrics and the two fitness formulas (robust, paper) live here too.
+stops at a fall. An episode may be disturbed (Disturbance: ground friction, a push, noisy hip
+sensors), all from the walking phase on, so the lock phase stays shared. Metrics and the two
+fitness formulas (robust, paper) live here too.
 """
 
 from __future__ import annotations
@@ -67,6 +69,40 @@ class EpisodeSettings:
     lock: float = 3.0
     fall_height: float = 0.25
     fall_tilt: float = 60.0
+
+
+#: Disturbance scales at noise = 1: ground friction is multiplied by exp(FRICTION_SPREAD * u),
+#: u ~ U(-1, 1) ...
+FRICTION_SPREAD = 0.2
+#: ... the torso is pushed at the start of the walking phase with a horizontal velocity whose
+#: x and y are N(0, PUSH_STD²), m/s ...
+PUSH_STD = 0.05
+#: ... and every hip angle the gait reads carries its own N(0, SENSOR_STD²) error, radians (1°).
+SENSOR_STD = math.radians(1.0)
+
+
+@dataclass(frozen=True)
+class Disturbance:
+    """One noisy episode's random conditions, all applied from the walking phase on."""
+
+    friction: float  #: ground friction coefficient for the walking phase
+    push: tuple[float, float, float]  #: velocity added to the torso as walking starts, m/s
+    #: per control step, the errors added to the measured (llj3, rlj3) the gait reads, radians
+    sensor_errors: list[list[float]]
+
+    @classmethod
+    def draw(cls, noise: float, seed: int, nominal_friction: float, steps: int) -> Disturbance:
+        """The disturbance of scale ``noise`` (> 0) for an episode of ``steps`` walking control
+        steps, a pure function of its arguments (numpy's default_rng(seed))."""
+        rng = np.random.default_rng(seed)
+        u = rng.uniform(-1.0, 1.0)
+        normal = rng.standard_normal(2 + 2 * steps)
+        push_x, push_y = noise * PUSH_STD * normal[:2]
+        return cls(
+            friction=nominal_friction * math.exp(noise * FRICTION_SPREAD * u),
+            push=(float(push_x), float(push_y), 0.0),
+            sensor_errors=(noise * SENSOR_STD * normal[2:]).reshape(steps, 2).tolist(),
+        )
 
 
 @dataclass
@@ -134,11 +170,27 @@ class EpisodeRunner:
         self._cos_tilt = math.cos(math.radians(settings.fall_tilt))
         self._after_lock: Any = None
 
-    def _start_walking(self) -> None:
-        """Put the backend at the end of the lock phase (restored or simulated)."""
-        if self._after_lock is not None:
+    @property
+    def walk_steps(self) -> int:
+        """Control steps in the walking phase (the length a Disturbance must cover)."""
+        return self._walk_steps
+
+    def _start_walking(self, disturbance: Disturbance | None) -> None:
+        """Put the backend at the end of the lock phase (restored or simulated), then set the
+        walking phase's ground friction (nominal, or the disturbance's) and push."""
+        if self._after_lock is None:
+            self._simulate_lock()
+        else:
             self.backend.restore_state(self._after_lock)
-            return
+        if disturbance is None:
+            self.backend.set_ground_friction(self.backend.settings.friction)
+        else:
+            self.backend.set_ground_friction(disturbance.friction)
+            self.backend.push_root(disturbance.push)
+
+    def _simulate_lock(self) -> None:
+        """The lock phase from reset (nominal friction); kept where the backend restores it
+        exactly."""
         self.backend.reset()
         for _ in range(self._lock_steps):
             self.backend.step(self._rest)
@@ -153,12 +205,17 @@ class EpisodeRunner:
         z = float(self.backend.root_position()[2])
         return z < self.settings.fall_height or self.backend.root_rotation()[2, 2] < self._cos_tilt
 
-    def run(self, gait: Gait, record: bool = False) -> EpisodeResult:
+    def run(
+        self, gait: Gait, record: bool = False, disturbance: Disturbance | None = None
+    ) -> EpisodeResult:
         """One episode: lock phase (all joints held at rest), then gait drives DRIVEN_JOINTS
-        until the end or a fall. ``record`` keeps a per-step trajectory for plots."""
+        until the end or a fall, under ``disturbance`` if given (None: noise-free).
+        ``record`` keeps a per-step trajectory for plots (true angles, not the sensed ones)."""
+        if disturbance is not None and len(disturbance.sensor_errors) != self._walk_steps:
+            raise ValueError(f"the disturbance must cover {self._walk_steps} walking steps")
         backend, targets = self.backend, self._targets
         targets[:] = self._rest
-        self._start_walking()
+        self._start_walking(disturbance)
         gait.reset()
         x0, y0, z = (float(v) for v in backend.root_position())
         height_min = height_max = z
@@ -167,9 +224,16 @@ class EpisodeRunner:
         fall_height, cos_tilt = self.settings.fall_height, self._cos_tilt
         rows: list[list[float]] = []
         fell, steps = False, 0
+        errors = disturbance.sensor_errors if disturbance is not None else None
         while steps < self._walk_steps:
             angles = backend.joint_angles()
-            out = gait.step(float(angles[left]), float(angles[right]))
+            if errors is None:
+                out = gait.step(float(angles[left]), float(angles[right]))
+            else:
+                error_left, error_right = errors[steps]
+                out = gait.step(
+                    float(angles[left]) + error_left, float(angles[right]) + error_right
+                )
             targets[j0], targets[j1], targets[j2] = out[0], out[1], out[2]
             targets[j3], targets[j4], targets[j5] = out[3], out[4], out[5]
             backend.step(targets)

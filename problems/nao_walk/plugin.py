@@ -18,7 +18,7 @@ from metaopt.plugins import registry
 from metaopt.problem import Evaluation, Problem, ProblemInfo, Sense
 
 from .controller import MatsuokaCpg, cpg_space
-from .episode import FITNESS_KINDS, EpisodeRunner, EpisodeSettings, Gait, fitness
+from .episode import FITNESS_KINDS, Disturbance, EpisodeRunner, EpisodeSettings, Gait, fitness
 from .robot import nao
 
 PARAMS = (
@@ -36,12 +36,15 @@ PARAMS = (
           low=0.0),
     Param("fall_tilt", float, 60.0, "fallen when the torso tilts further than this, degrees",
           low=0.0, high=180.0, low_open=True),
+    Param("noise", float, 0.0, "disturbance scale drawn from the evaluation's seed: friction, "
+          "push, hip sensors (docs/nao-walk.md, Noise); 0 = deterministic", low=0.0, high=10.0),
 )  # fmt: skip
 
 
 class NaoWalk(Problem):
-    """The paper's task on one physics backend. The simulation is noise-free, so the seed is
-    not used: every (x, seed) gives the same episode in any process."""
+    """The paper's task on one physics backend. With noise 0 the seed is not used; with noise
+    > 0 it draws the episode's Disturbance. Either way (x, seed) gives the same episode in any
+    process."""
 
     sense = Sense.MAXIMIZE
     key_metrics = ("distance", "drift", "speed", "time_walked", "fell")
@@ -56,6 +59,7 @@ class NaoWalk(Problem):
         servo_gain: float = 10.0,
         fall_height: float = 0.25,
         fall_tilt: float = 60.0,
+        noise: float = 0.0,
     ) -> None:
         if lock >= duration:
             raise ConfigError(
@@ -66,6 +70,7 @@ class NaoWalk(Problem):
         self.fitness_kind = fitness
         self.physics = PhysicsSettings(substeps=substeps, servo_gain=servo_gain)
         self.episode = EpisodeSettings(duration, lock, fall_height, fall_tilt)
+        self.noise = noise
         self.robot = nao()
         limits = {}
         for joint in ("llj3", "llj4", "llj5"):
@@ -91,8 +96,14 @@ class NaoWalk(Problem):
             ankle_limits=self._limits["llj5"],
         )
 
+    def disturbance(self, seed: int) -> Disturbance | None:
+        """The episode conditions seed draws at this problem's noise (None when noise is 0)."""
+        if self.noise == 0:
+            return None
+        return Disturbance.draw(self.noise, seed, self.physics.friction, self.runner.walk_steps)
+
     def evaluate(self, x: np.ndarray, seed: int) -> Evaluation:
-        result = self.runner.run(self.gait(x))
+        result = self.runner.run(self.gait(x), disturbance=self.disturbance(seed))
         value = fitness(result, self.fitness_kind, self.episode.duration)
         return Evaluation(value, result.metrics())
 

@@ -19,6 +19,7 @@ from metaopt.physics import (
     PhysicsBackend,
     PhysicsSettings,
     RobotDescription,
+    Vec3,
     servo_velocities,
 )
 from metaopt_problems.physics.mujoco_backend import DEFAULT_SUBSTEPS
@@ -125,6 +126,7 @@ class MujocoBackend(PhysicsBackend):
         mujoco.mj_resetData(self.model, self.data)
         self.data.qpos[2] = self.robot.start_height
         self._angles[:] = self.robot.rest_angles
+        self.set_ground_friction(self.settings.friction)
         mujoco.mj_forward(self.model, self.data)
 
     def step(self, joint_targets: np.ndarray) -> None:
@@ -166,6 +168,15 @@ class MujocoBackend(PhysicsBackend):
 
     def time(self) -> float:
         return self.data.time
+
+    # A contact takes the larger of its two geoms' coefficients, and the robot's geoms touch
+    # only the floor, so every geom gets mu.
+    def set_ground_friction(self, mu: float) -> None:
+        self.model.geom_friction[:, 0] = mu
+
+    def push_root(self, velocity: Vec3) -> None:
+        self.data.qvel[0:3] += velocity  # the free joint's linear velocity is in world axes
+        mujoco.mj_forward(self.model, self.data)
 
     def save_state(self) -> Any:
         state = np.empty(mujoco.mj_stateSize(self.model, _STATE))

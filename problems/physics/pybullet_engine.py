@@ -21,6 +21,7 @@ from metaopt.physics import (
     PhysicsBackend,
     PhysicsSettings,
     RobotDescription,
+    Vec3,
     servo_velocities,
 )
 from metaopt_problems.physics.pybullet_backend import DEFAULT_SUBSTEPS
@@ -106,12 +107,13 @@ class PybulletBackend(PhysicsBackend):
         self._links = link_of
         self._joints = [link_of[h.child] for h in robot.hinges]
         self._feet = [link_of[name] for name in robot.contact_bodies]
+        # PyBullet multiplies the two bodies' coefficients: the robot's are 1, so the
+        # ground's (set_ground_friction) is the pair's.
         for link in link_of.values():
             pybullet.changeDynamics(
-                self._robot, link, lateralFriction=settings.friction, linearDamping=0.0,
-                angularDamping=0.0, **self._call,
+                self._robot, link, lateralFriction=1.0, linearDamping=0.0, angularDamping=0.0,
+                **self._call,
             )  # fmt: skip
-        pybullet.changeDynamics(self._plane, -1, lateralFriction=1.0, **self._call)
         n = len(robot.hinges)
         self._angles = np.zeros(n)
         self._command = np.zeros(n)
@@ -128,6 +130,7 @@ class PybulletBackend(PhysicsBackend):
         pybullet.resetBaseVelocity(self._robot, (0, 0, 0), (0, 0, 0), **call)
         for joint, rest in zip(self._joints, self.robot.rest_angles, strict=True):
             pybullet.resetJointState(self._robot, joint, float(rest), 0.0, **call)
+        self.set_ground_friction(self.settings.friction)
         self._steps = 0
         self._read()
 
@@ -176,6 +179,14 @@ class PybulletBackend(PhysicsBackend):
 
     def time(self) -> float:
         return self._steps * self.settings.control_period
+
+    def set_ground_friction(self, mu: float) -> None:
+        pybullet.changeDynamics(self._plane, -1, lateralFriction=mu, **self._call)
+
+    def push_root(self, velocity: Vec3) -> None:
+        linear, angular = pybullet.getBaseVelocity(self._robot, **self._call)
+        pushed = [v + dv for v, dv in zip(linear, velocity, strict=True)]
+        pybullet.resetBaseVelocity(self._robot, pushed, angular, **self._call)
 
     def save_state(self) -> Any:
         return (pybullet.saveState(**self._call), self._steps)
