@@ -1,13 +1,16 @@
 """Evaluations on a Dask distributed cluster: an existing one (--scheduler ADDRESS) or a
 LocalCluster of worker processes started here.
 
-Dask re-runs a task whose worker vanished; metaopt allows that once (the scheduler's
-``allowed-failures``, for clusters it starts) and stores the task as failed after that. A time
-limit on Dask abandons the evaluation (its result is ignored); the worker finishes it anyway.
+A task whose worker vanished is handed to Dask once more (on a LocalCluster started here Dask
+itself does not retry, ``allowed-failures`` 0), then stored as failed. Only as many tasks as
+there are live worker threads are handed to Dask at a time (the rest wait here), so a worker
+that dies takes down only the task it was running. A time limit on Dask abandons the
+evaluation (its result is ignored); the worker finishes it anyway.
 """
 
 from __future__ import annotations
 
+import collections
 import threading
 from concurrent.futures import Future
 
@@ -25,7 +28,7 @@ class DaskExecutor(Executor):
         self._cluster = None
         try:
             if address is None:
-                with dask.config.set({"distributed.scheduler.allowed-failures": 1}):
+                with dask.config.set({"distributed.scheduler.allowed-failures": 0}):
                     self._cluster = LocalCluster(
                         n_workers=workers,
                         threads_per_worker=1,
@@ -45,20 +48,64 @@ class DaskExecutor(Executor):
             ) from None
         self.workers = max(1, sum(self._client.nthreads().values())) if address else workers
         self._timers: list[threading.Timer] = []
+        self._changed = threading.Condition()
+        self._waiting: collections.deque[tuple[EvaluationTask, Future, int]] = collections.deque()
+        self._running = 0
+        self._closing = False
+        # Dask's callbacks run on its event loop, where submitting would deadlock: a thread
+        # of our own hands tasks over instead.
+        self._dispatcher = threading.Thread(target=self._hand_over, daemon=True)
+        self._dispatcher.start()
 
     def submit(self, task: EvaluationTask) -> Future:
         result: Future = Future()
-        key = f"metaopt-eval-{task.index}-{task.seed}"
+        with self._changed:
+            self._waiting.append((task, result, 1))
+            self._changed.notify()
+        return result
+
+    def _hand_over(self) -> None:
+        """Give Dask waiting tasks while fewer than ``workers`` run there."""
+        while True:
+            with self._changed:
+                while not self._closing and (self._running >= self.workers or not self._waiting):
+                    self._changed.wait()
+                if self._closing:
+                    return
+                if self._running > 0 and self._running >= self._live_threads():
+                    self._changed.wait(0.05)  # a worker is being replaced: wait for it
+                    continue
+                task, result, attempt = self._waiting.popleft()
+                self._running += 1
+            self._start(task, result, attempt)
+
+    def _live_threads(self) -> int:
+        try:
+            return sum(self._client.nthreads().values())
+        except (OSError, TimeoutError):
+            return 0
+
+    def _start(self, task: EvaluationTask, result: Future, attempt: int) -> None:
+        key = f"metaopt-eval-{task.index}-{task.seed}-{attempt}"
         dask_future = self._client.submit(evaluate_task, task, key=key, pure=False)
 
         def settle(done) -> None:
-            if result.done():
-                return
             try:
-                result.set_result(done.result())
+                outcome = done.result()
             except Exception as error:  # KilledWorker, CancelledError, lost connection
-                reason = f"Dask task failed: {type(error).__name__}: {error}"
-                result.set_result(Outcome(task.index, None, error=reason))
+                if attempt == 1 and not result.done():
+                    with self._changed:  # once more, on whichever worker is free
+                        self._running -= 1
+                        self._waiting.appendleft((task, result, 2))
+                        self._changed.notify()
+                    return
+                reason = f"Dask task failed twice: {type(error).__name__}: {error}"
+                outcome = Outcome(task.index, None, error=reason)
+            with self._changed:
+                self._running -= 1
+                self._changed.notify()
+            if not result.done():
+                result.set_result(outcome)
 
         dask_future.add_done_callback(settle)
         if task.time_limit is not None:
@@ -66,7 +113,6 @@ class DaskExecutor(Executor):
             timer.daemon = True
             timer.start()
             self._timers.append(timer)
-        return result
 
     @staticmethod
     def _abandon(task: EvaluationTask, result: Future, dask_future) -> None:
@@ -76,8 +122,14 @@ class DaskExecutor(Executor):
             dask_future.cancel()
 
     def shutdown(self) -> None:
+        with self._changed:
+            self._closing = True
+            self._changed.notify()
+        self._dispatcher.join()
         for timer in self._timers:
             timer.cancel()
+        for _, result, _ in self._waiting:
+            result.cancel()
         self._client.close()
         if self._cluster is not None:
             self._cluster.close()

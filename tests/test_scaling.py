@@ -1,0 +1,208 @@
+"""Executors, scheduling modes, resampling, resume and faults, on real processes and Dask."""
+
+from __future__ import annotations
+
+import os
+import signal
+import sqlite3
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import pytest
+
+from metaopt.plugins import registry
+from metaopt.run_loop import RunSettings, RunSpec, run
+from metaopt.store import RunStore
+from tests.conftest import metaopt_cli
+
+ALL = {"METAOPT_LOAD_PLUGINS": None}
+#: A short nao-walk episode: real physics, a few milliseconds an evaluation.
+SHORT_WALK = {"duration": 3.0, "lock": 1.0}
+
+
+def _stored(db: Path, run_id: int = 1) -> list[tuple]:
+    with RunStore(db) as store:
+        return [
+            (e.index, e.candidate, e.x.tobytes(), e.fitness, e.seed, e.status)
+            for e in store.evaluations(run_id)
+        ]
+
+
+def _walk_run(db: Path, executor_name: str | None, settings: RunSettings, budget: int = 24):
+    plugins = registry()
+    spec = RunSpec("hs", "nao-walk", budget, 9, problem_params=SHORT_WALK, settings=settings)
+    executor = None if executor_name is None else plugins.executor(executor_name).factory(2, None)
+    with RunStore(db) as store:
+        return run(
+            spec, plugins.optimizer("hs"), plugins.problem("nao-walk"), store, None, executor
+        )
+
+
+def test_sync_runs_are_identical_on_every_executor(tmp_path):
+    """Serially, on 2 local processes and on a 2-worker Dask LocalCluster: same evaluations."""
+    settings = RunSettings(mode="sync", batch=4)
+    results = {}
+    for name in (None, "process", "dask"):
+        db = tmp_path / f"{name}.db"
+        results[name] = (_walk_run(db, name, settings), _stored(db))
+    serial_result, serial_rows = results[None]
+    assert len(serial_rows) == 24 and serial_result.status == "finished"
+    for name in ("process", "dask"):
+        result, rows = results[name]
+        assert rows == serial_rows, f"{name} differs from the serial run"
+        assert result.best_fitness == serial_result.best_fitness
+
+
+def test_async_mode_keeps_workers_busy_and_spends_the_budget(tmp_path):
+    result = _walk_run(tmp_path / "a.db", "process", RunSettings(mode="async"), budget=30)
+    rows = _stored(tmp_path / "a.db")
+    assert result.status == "finished" and len(rows) == 30
+    assert sorted(r[0] for r in rows) == list(range(30))
+
+
+def test_async_refuses_a_generational_optimizer(tmp_path):
+    done = metaopt_cli("run", "-o", "ga", "-p", "sphere", "--mode", "async", "--workers", "2",
+                       cwd=tmp_path)  # fmt: skip
+    assert done.returncode == 2 and "cannot run in async mode" in done.stderr
+
+
+def test_resampling_stores_every_sample_with_its_own_seed(tmp_path):
+    done = metaopt_cli(
+        "run", "-o", "random", "-p", "nao-walk", "--budget", "12", "--resample", "3",
+        "--aggregate", "median", "--seed", "4", "--set", "duration=3", "--set", "lock=1",
+        "--set", "noise=1", cwd=tmp_path,
+    ) if "noise" in {p.name for p in registry().problem("nao-walk").params} else None  # fmt: skip
+    if done is None:
+        pytest.skip("nao-walk has no noise option yet")
+    assert done.returncode == 0, done.stderr
+    rows = _stored(tmp_path / "metaopt.db")
+    assert len(rows) == 12
+    by_candidate: dict[int, list[tuple]] = {}
+    for row in rows:
+        by_candidate.setdefault(row[1], []).append(row)
+    assert sorted(by_candidate) == [0, 1, 2, 3]
+    for samples in by_candidate.values():
+        assert len({s[2] for s in samples}) == 1  # one candidate
+        assert len({s[4] for s in samples}) == 3  # three seeds
+    assert len({s[3] for s in by_candidate[0]}) > 1  # noise made the samples differ
+
+
+def _count(db: Path) -> int:
+    try:
+        with sqlite3.connect(db, timeout=5) as connection:
+            return connection.execute("SELECT COUNT(*) FROM evaluations").fetchone()[0]
+    except sqlite3.OperationalError:
+        return 0
+
+
+def _start_run(db: Path, cwd: Path, *extra: str) -> subprocess.Popen:
+    command = [
+        sys.executable, "-m", "metaopt", "run", "-o", "hs", "-p", "nao-walk", "--budget", "150",
+        "--seed", "3", "--batch", "3", "--set", "duration=3", "--set", "lock=1", "--db", str(db),
+        *extra,
+    ]  # fmt: skip
+    return subprocess.Popen(command, cwd=cwd, stdout=subprocess.PIPE, stderr=subprocess.PIPE)
+
+
+def _kill_when(process: subprocess.Popen, db: Path, stored: int, sig: int) -> None:
+    deadline = time.monotonic() + 120
+    while _count(db) < stored and process.poll() is None and time.monotonic() < deadline:
+        time.sleep(0.02)
+    process.send_signal(sig)
+    process.wait(timeout=60)
+
+
+def test_sigkill_at_any_point_then_resume_ends_like_an_uninterrupted_run(tmp_path):
+    reference = tmp_path / "reference.db"
+    assert _start_run(reference, tmp_path).wait(timeout=300) == 0
+    expected = _stored(reference)
+    assert len(expected) == 150
+    interrupted_mid_run = 0
+    for kill_at in (5, 60, 110):
+        db = tmp_path / f"killed-{kill_at}.db"
+        _kill_when(_start_run(db, tmp_path), db, kill_at, signal.SIGKILL)
+        stored_before = _count(db)
+        if stored_before < 150:  # the kill landed inside the run (a fast machine may finish)
+            interrupted_mid_run += 1
+            resumed = metaopt_cli("resume", "1", "--db", str(db), cwd=tmp_path)
+            assert resumed.returncode == 0, resumed.stderr
+        assert _stored(db) == expected, f"killed at {stored_before} stored evaluations"
+    assert interrupted_mid_run >= 2
+
+
+def test_sigterm_stops_cleanly_and_says_how_to_resume(tmp_path):
+    db = tmp_path / "term.db"
+    process = _start_run(db, tmp_path)
+    _kill_when(process, db, 30, signal.SIGTERM)
+    stderr = process.stderr.read().decode()
+    assert process.returncode == 130, stderr
+    assert f"Resume with: metaopt resume 1 --db {db}" in stderr
+    assert "Traceback" not in stderr
+    with RunStore(db) as store:
+        assert store.run(1).status == "interrupted"
+        stored = store.evaluation_counts(1)[0]
+    assert 30 <= stored < 150
+    assert metaopt_cli("resume", "1", "--db", str(db), cwd=tmp_path).returncode == 0
+    with RunStore(db) as store:
+        assert store.run(1).status == "finished" and store.evaluation_counts(1)[0] == 150
+
+
+@pytest.mark.parametrize("executor", ["process", "dask"])
+def test_a_worker_that_dies_is_replaced_and_its_candidate_failed(
+    tmp_path, outside_plugin_path, executor
+):
+    """The bowl kills its own process for x0 < -2: retried once, then stored as failed."""
+    done = metaopt_cli(
+        "run", "-o", "random", "-p", "bowl", "--budget", "40", "--seed", "1",
+        "--executor", executor, "--workers", "2", "--set", "die_below=2",
+        cwd=tmp_path, extra_path=outside_plugin_path, env=ALL,
+    )  # fmt: skip
+    assert done.returncode == 0, done.stderr
+    rows = _stored(tmp_path / "metaopt.db")
+    assert len(rows) == 40
+    with RunStore(tmp_path / "metaopt.db") as store:
+        evaluations = list(store.evaluations(1))
+    deadly = [e for e in evaluations if e.x[0] < -2]
+    assert deadly and all(e.status == "failed" for e in deadly)
+    assert all(e.status == "ok" for e in evaluations if e.x[0] >= -2)
+    marker = "died twice" if executor == "process" else "Dask task failed"
+    assert all(marker in e.error for e in deadly)
+
+
+@pytest.mark.parametrize("executor", [None, "process"])
+def test_an_evaluation_past_its_time_limit_is_stopped_and_failed(
+    tmp_path, outside_plugin_path, executor
+):
+    choice = [] if executor is None else ["--executor", executor, "--workers", "2"]
+    start = time.monotonic()
+    done = metaopt_cli(
+        "run", "-o", "random", "-p", "bowl", "--budget", "20", "--seed", "1",
+        "--set", "batch_size=4", "--set", "stall_below=2.5", "--time-limit", "0.5", *choice,
+        cwd=tmp_path, extra_path=outside_plugin_path, env=ALL,
+    )  # fmt: skip
+    assert done.returncode == 0, done.stderr
+    assert time.monotonic() - start < 25  # nobody waited out a 30 s stall
+    with RunStore(tmp_path / "metaopt.db") as store:
+        evaluations = list(store.evaluations(1))
+    stalled = [e for e in evaluations if e.x[0] < -2.5]
+    assert stalled and all("time limit" in e.error for e in stalled)
+
+
+def test_two_runs_writing_one_database_at_once_both_complete(tmp_path):
+    db = tmp_path / "shared.db"
+    processes = [_start_run(db, tmp_path, "--seed", str(seed)) for seed in (1, 2)]
+    assert [p.wait(timeout=300) for p in processes] == [0, 0]
+    with RunStore(db) as store:
+        assert [r.status for r in store.runs()] == ["finished", "finished"]
+        assert [store.evaluation_counts(r.id)[0] for r in store.runs()] == [150, 150]
+
+
+def test_unknown_executor_and_misplaced_scheduler(tmp_path):
+    done = metaopt_cli("run", "-o", "hs", "-p", "sphere", "--executor", "ray", cwd=tmp_path)
+    assert done.returncode == 2 and "unknown executor 'ray'" in done.stderr
+    done = metaopt_cli("run", "-o", "hs", "-p", "sphere", "--executor", "process",
+                       "--scheduler", "tcp://127.0.0.1:1", cwd=tmp_path)  # fmt: skip
+    assert done.returncode == 2 and "--scheduler is for the dask executor" in done.stderr
+    assert not os.path.exists(tmp_path / "metaopt.db") or _count(tmp_path / "metaopt.db") == 0
