@@ -11,6 +11,7 @@ import click
 from rich.console import Console
 
 from metaopt import display
+from metaopt.cli_new import new
 from metaopt.errors import ConfigError, MetaoptError
 from metaopt.executors import Executor, SerialExecutor
 from metaopt.export import FORMATS, export_run
@@ -30,7 +31,7 @@ from metaopt.settings import parse_problem_settings, split_settings
 from metaopt.store import DEFAULT_DB, RunStore
 
 console = Console()
-errors = Console(stderr=True)
+errors = Console(stderr=True, soft_wrap=True)
 
 db_option = click.option(
     "--db",
@@ -331,3 +332,6 @@ def replay_command(
 def _require_store(db_path: str) -> None:
     if not Path(db_path).exists():
         raise MetaoptError(f"no run store at {db_path}; run `metaopt run` first or pass --db PATH")
+
+
+main.add_command(new)
