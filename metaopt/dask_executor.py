@@ -2,20 +2,29 @@
 LocalCluster of worker processes started here.
 
 A task whose worker vanished is handed to Dask once more (on a LocalCluster started here Dask
-itself does not retry, ``allowed-failures`` 0), then stored as failed. Only as many tasks as
-there are live worker threads are handed to Dask at a time (the rest wait here), so a worker
-that dies takes down only the task it was running. A time limit on Dask abandons the
+itself does not retry, ``allowed-failures`` 0), then stored as failed. At most a few tasks
+per live worker thread are handed to Dask at a time (the rest wait here), so a worker that
+dies takes down little besides the task it was running, and that is retried. A time limit
+on Dask abandons the
 evaluation (its result is ignored); the worker finishes it anyway.
 """
 
 from __future__ import annotations
 
 import collections
+import math
 import threading
+import time
 from concurrent.futures import Future
 
 from metaopt.errors import ConfigError
 from metaopt.executors import EvaluationTask, Executor, Outcome, evaluate_task
+
+#: Tasks handed to Dask per worker thread: a Dask round trip takes milliseconds, so a few wait
+#: ready on each worker and none idles between tasks.
+PREFETCH = 4
+#: Seconds after a lost worker during which hand-overs wait for live worker threads.
+LOSS_WINDOW = 30.0
 
 
 class DaskExecutor(Executor):
@@ -51,11 +60,16 @@ class DaskExecutor(Executor):
         self._changed = threading.Condition()
         self._waiting: collections.deque[tuple[EvaluationTask, Future, int]] = collections.deque()
         self._running = 0
+        self._last_loss = -math.inf
         self._closing = False
         # Dask's callbacks run on its event loop, where submitting would deadlock: a thread
         # of our own hands tasks over instead.
         self._dispatcher = threading.Thread(target=self._hand_over, daemon=True)
         self._dispatcher.start()
+
+    @property
+    def capacity(self) -> int:
+        return PREFETCH * self.workers
 
     def submit(self, task: EvaluationTask) -> Future:
         result: Future = Future()
@@ -68,16 +82,22 @@ class DaskExecutor(Executor):
         """Give Dask waiting tasks while fewer than ``workers`` run there."""
         while True:
             with self._changed:
-                while not self._closing and (self._running >= self.workers or not self._waiting):
+                while not self._closing and (
+                    self._running >= PREFETCH * self.workers or not self._waiting
+                ):
                     self._changed.wait()
                 if self._closing:
                     return
-                if self._running > 0 and self._running >= self._live_threads():
+                if self._recent_loss() and self._running >= self._live_threads():
                     self._changed.wait(0.05)  # a worker is being replaced: wait for it
                     continue
                 task, result, attempt = self._waiting.popleft()
                 self._running += 1
             self._start(task, result, attempt)
+
+    def _recent_loss(self) -> bool:
+        """A worker was lost lately, so the cluster may be smaller until it is replaced."""
+        return time.monotonic() - self._last_loss < LOSS_WINDOW
 
     def _live_threads(self) -> int:
         try:
@@ -95,6 +115,7 @@ class DaskExecutor(Executor):
             except Exception as error:  # KilledWorker, CancelledError, lost connection
                 if attempt == 1 and not result.done():
                     with self._changed:  # once more, on whichever worker is free
+                        self._last_loss = time.monotonic()
                         self._running -= 1
                         self._waiting.appendleft((task, result, 2))
                         self._changed.notify()

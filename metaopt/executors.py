@@ -137,8 +137,14 @@ def _in_main_thread() -> bool:
 class Executor(ABC):
     """Runs EvaluationTasks; ``workers`` of them at a time."""
 
-    #: How many tasks run at once (the run loop keeps this many in flight in async mode).
+    #: How many tasks run at once.
     workers: int = 1
+
+    @property
+    def capacity(self) -> int:
+        """Tasks to keep in flight so no worker waits (async mode); more than ``workers`` where
+        handing a task over takes a round trip."""
+        return self.workers
 
     @abstractmethod
     def submit(self, task: EvaluationTask) -> Future:

@@ -73,6 +73,8 @@ class ProcessExecutor(Executor):
         self._lock = threading.Lock()
         self._queue: collections.deque[_Job] = collections.deque()
         self._pool = [_Worker(self._context) for _ in range(workers)]
+        # submit() writes here to wake the manager at once instead of at its next poll.
+        self._wake_reader, self._wake_writer = self._context.Pipe(duplex=False)
         self._stopping = False
         self._manager = threading.Thread(target=self._manage, name="metaopt-pool", daemon=True)
         self._manager.start()
@@ -81,19 +83,17 @@ class ProcessExecutor(Executor):
         future: Future = Future()
         with self._lock:
             self._queue.append(_Job(task, future))
+        self._wake_writer.send_bytes(b"")
         return future
 
     def _manage(self) -> None:
         while not self._stopping:
             self._assign()
             busy = [w for w in self._pool if w.job is not None]
-            if not busy:
-                time.sleep(POLL_INTERVAL / 5)
-                continue
-            ready = wait(
-                [w.connection for w in busy] + [w.process.sentinel for w in busy],
-                timeout=POLL_INTERVAL,
-            )
+            watched = [w.connection for w in busy] + [w.process.sentinel for w in busy]
+            ready = wait([self._wake_reader, *watched], timeout=POLL_INTERVAL)
+            while self._wake_reader.poll():
+                self._wake_reader.recv_bytes()
             for worker in busy:
                 if worker.connection in ready:
                     self._collect(worker)
@@ -144,6 +144,7 @@ class ProcessExecutor(Executor):
 
     def shutdown(self) -> None:
         self._stopping = True
+        self._wake_writer.send_bytes(b"")
         self._manager.join()
         for worker in self._pool:
             if worker.job is None:

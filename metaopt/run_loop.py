@@ -341,7 +341,7 @@ class _Session:
             else:
                 in_flight.update(self._submit(executor, [candidate]))
         while in_flight or next_index < self.total:
-            while len(in_flight) < executor.workers and next_index < self.total:
+            while len(in_flight) < executor.capacity and next_index < self.total:
                 x = self.optimizer.ask(1)[0]
                 candidate = _Candidate(next_index // self.resample, x, [None] * self.resample)
                 in_flight.update(self._submit(executor, [candidate]))
