@@ -10,6 +10,7 @@ import pytest
 
 from metaopt import ConfigError
 from metaopt.params import resolve
+from metaopt.testing import check_problem
 from metaopt_problems.bbob import DIMENSIONS, PARAMS, BBOBProblem
 from tests.conftest import metaopt_cli
 
@@ -135,9 +136,8 @@ def test_the_cli_reports_a_bad_dimension_in_one_line(tmp_path):
 
 @pytest.mark.parametrize("observe", [False, True])
 def test_bbob_passes_the_conformance_kit(tmp_path, monkeypatch, observe):
-    testing = pytest.importorskip("metaopt.testing", reason="the conformance kit is not here")
     monkeypatch.chdir(tmp_path)
     params = {"function": 15, "dim": 3, "observe": str(tmp_path / "coco") if observe else ""}
-    testing.check_problem("bbob", params=params)
+    check_problem("bbob", params=params)
     written = {p.name.split("-")[0] for p in tmp_path.iterdir()}  # each build: coco, coco-0001...
     assert written == ({"coco"} if observe else set())

@@ -5,8 +5,6 @@ The convention, read from the Markdown (HTML comments do not show on the rendere
 - a block preceded by ``<!-- file: PATH -->`` is written to PATH in a fresh workspace folder;
 - a ``bash`` block is run with ``bash -euo pipefail`` in the workspace;
 - a ``python`` block is run with ``python -c`` in the workspace (it asserts what it shows);
-- ``<!-- requires: MODULE -->`` marks a block that needs MODULE; those run in their own test,
-  skipped with a visible reason while MODULE is missing;
 - any other block fails the test, so nothing in the tutorial goes unexecuted.
 
 Commands run with shims first on PATH: ``metaopt`` and ``python`` are this interpreter, and
@@ -18,7 +16,6 @@ install, which is the same for a package installed once.
 
 from __future__ import annotations
 
-import importlib.util
 import os
 import re
 import subprocess
@@ -29,7 +26,7 @@ from pathlib import Path
 import pytest
 
 TUTORIAL = Path(__file__).parents[1] / "docs" / "writing-plugins.md"
-MARK = re.compile(r"<!--\s*(file|requires):\s*(\S+)\s*-->")
+MARK = re.compile(r"<!--\s*(file):\s*(\S+)\s*-->")
 
 PIP_SHIM = """#!/bin/sh
 if [ "$1" != install ]; then echo "tutorial pip shim: only 'pip install' is mapped" >&2; exit 2; fi
@@ -49,11 +46,10 @@ class Block:
     language: str
     body: str
     file: str | None = None
-    requires: str | None = None
 
 
 def read_blocks(markdown: str) -> list[Block]:
-    """Every fenced block in order, with the ``<!-- file/requires -->`` marks just above it."""
+    """Every fenced block in order, with the ``<!-- file: PATH -->`` mark just above it."""
     blocks: list[Block] = []
     marks: dict[str, str] = {}
     lines = markdown.splitlines()
@@ -138,18 +134,17 @@ BLOCKS = read_blocks(TUTORIAL.read_text())
 
 @pytest.fixture(scope="module")
 def walkthrough(tmp_path_factory: pytest.TempPathFactory) -> Workspace:
-    """The tutorial done once, in order, leaving out blocks that need a missing module."""
+    """The tutorial done once, in order."""
     workspace = Workspace(tmp_path_factory.mktemp("tutorial"))
     for block in BLOCKS:
-        if block.requires is None:
-            workspace.execute(block)
+        workspace.execute(block)
     return workspace
 
 
 def test_the_tutorial_runs_as_written(walkthrough: Workspace):
     fences = [line for line in TUTORIAL.read_text().splitlines() if line.lstrip().startswith("```")]
     assert len(fences) == 2 * len(BLOCKS)  # every block was read (none indented or unclosed)
-    assert [block for block, _ in walkthrough.ran] == [b for b in BLOCKS if b.requires is None]
+    assert [block for block, _ in walkthrough.ran] == BLOCKS
     kinds = {"file" if b.file else b.language for b, _ in walkthrough.ran}
     assert kinds == {"file", "bash", "python"}
 
@@ -168,12 +163,7 @@ def test_the_tutorial_runs_as_written(walkthrough: Workspace):
 
     assert "Evaluation(fitness=-9.0" in walkthrough.output_of("from my_plugin.problem import")
 
-
-@pytest.mark.parametrize("module", sorted({b.requires for b in BLOCKS if b.requires}))
-def test_the_tutorial_blocks_that_need_a_module(walkthrough: Workspace, module: str):
-    if importlib.util.find_spec(module) is None:
-        pytest.skip(f"{module} is not in this metaopt yet; its blocks in {TUTORIAL.name} wait")
-    for block in BLOCKS:
-        if block.requires == module:
-            walkthrough.execute(block)
-    assert sum(1 for block, _ in walkthrough.ran if block.requires == module) >= 2
+    kit = walkthrough.output_of("python -m pytest -q my-metaopt-plugin/tests")
+    assert "2 passed" in kit
+    scaffold = walkthrough.output_of("metaopt new optimizer my-es")
+    assert "passed" in scaffold and "my-es" in scaffold
