@@ -8,8 +8,16 @@ from dataclasses import dataclass
 import numpy as np
 
 from metaopt.errors import ConfigError
+from metaopt.params import Param
 
 REPAIR_METHODS = ("clip", "reflect")
+
+
+def repair_param(
+    meaning: str = "how values pushed past a bound come back: clip or reflect",
+) -> Param:
+    """The ``repair`` parameter an optimizer declares to let users choose Space.repair's method."""
+    return Param("repair", str, "clip", meaning, choices=REPAIR_METHODS)
 
 
 @dataclass(frozen=True)

@@ -30,7 +30,7 @@ from metaopt import (
     restore_rng,
     rng_state,
 )
-from metaopt.space import REPAIR_METHODS
+from metaopt.space import repair_param
 
 Crossover = Callable[[np.ndarray, np.ndarray, np.random.Generator], tuple[np.ndarray, np.ndarray]]
 Mutation = Callable[[np.ndarray, np.ndarray, np.random.Generator], np.ndarray]
@@ -266,13 +266,7 @@ PARAMS = (
         low=0,
         low_open=True,
     ),
-    Param(
-        "repair",
-        str,
-        "clip",
-        "how offspring outside the bounds are brought back",
-        choices=REPAIR_METHODS,
-    ),
+    repair_param("how offspring outside the bounds are brought back: clip or reflect"),
 )
 
 

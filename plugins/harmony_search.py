@@ -42,7 +42,7 @@ from metaopt import (
     restore_rng,
     rng_state,
 )
-from metaopt.space import REPAIR_METHODS
+from metaopt.space import repair_param
 
 PITCH_ADJUSTMENTS = ("bandwidth", "resample", "ihs", "ghs")
 #: Variants whose PAR follows the par_min -> par_max schedule.
@@ -391,13 +391,7 @@ PARAMS = (
         "run (metaopt run sets the run's budget unless given; past it they stay at the end)",
         low=1,
     ),
-    Param(
-        "repair",
-        str,
-        "clip",
-        "how values pushed past a bound come back: clip to it or reflect off it",
-        choices=REPAIR_METHODS,
-    ),
+    repair_param("how values pushed past a bound come back: clip to it or reflect off it"),
 )
 
 

@@ -12,20 +12,25 @@ import pytest
 FIXTURES = Path(__file__).parent / "fixtures"
 
 
-@pytest.fixture(scope="session")
-def outside_plugin_path(tmp_path_factory: pytest.TempPathFactory) -> Path:
-    """The example plugin package, pip-installed into its own directory (not site-packages)."""
-    target = tmp_path_factory.mktemp("outside_plugin")
+def pip_install_isolated(target: Path, *sources: Path) -> Path:
+    """pip-install packages into ``target`` (put it on PYTHONPATH), not into site-packages."""
     subprocess.run(
         [
             sys.executable, "-m", "pip", "install", "--quiet", "--no-deps",
-            "--no-build-isolation", "--target", str(target),
-            str(FIXTURES / "outside_plugin"),
+            "--no-build-isolation", "--target", str(target), *map(str, sources),
         ],
         check=True,
         capture_output=True,
     )  # fmt: skip
     return target
+
+
+@pytest.fixture(scope="session")
+def outside_plugin_path(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """The example plugin package, pip-installed into its own directory (not site-packages)."""
+    return pip_install_isolated(
+        tmp_path_factory.mktemp("outside_plugin"), FIXTURES / "outside_plugin"
+    )
 
 
 def metaopt_cli(

@@ -11,7 +11,7 @@ from pathlib import Path
 import pytest
 
 from metaopt.store import RunStore
-from tests.conftest import metaopt_cli
+from tests.conftest import metaopt_cli, pip_install_isolated
 
 EXAMPLE = Path(__file__).parent.parent / "examples" / "metaopt-cma"
 
@@ -22,15 +22,7 @@ def cma_plugin_path(tmp_path_factory: pytest.TempPathFactory) -> Path:
     source = tmp_path_factory.mktemp("metaopt-cma-source") / "metaopt-cma"
     shutil.copytree(EXAMPLE, source, ignore=shutil.ignore_patterns("build", "*.egg-info"))
     target = tmp_path_factory.mktemp("metaopt-cma")
-    subprocess.run(
-        [
-            sys.executable, "-m", "pip", "install", "--quiet", "--no-deps",
-            "--no-build-isolation", "--target", str(target), str(source),
-        ],
-        check=True,
-        capture_output=True,
-    )  # fmt: skip
-    return target
+    return pip_install_isolated(target, source)
 
 
 def test_its_own_tests_pass_the_conformance_kit(cma_plugin_path: Path, tmp_path: Path):

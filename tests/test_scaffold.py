@@ -11,7 +11,7 @@ import pytest
 
 from metaopt.errors import ConfigError
 from metaopt.scaffold import create_plugin, plugin_names
-from tests.conftest import metaopt_cli
+from tests.conftest import metaopt_cli, pip_install_isolated
 
 
 def test_new_plugins_install_pass_their_own_tests_and_run(tmp_path: Path):
@@ -20,15 +20,7 @@ def test_new_plugins_install_pass_their_own_tests_and_run(tmp_path: Path):
         assert created.returncode == 0, created.stderr
         assert f"pip install -e {name}" in created.stdout
     site = tmp_path / "site"
-    subprocess.run(
-        [
-            sys.executable, "-m", "pip", "install", "--quiet", "--no-deps",
-            "--no-build-isolation", "--target", str(site),
-            str(tmp_path / "tiny-es"), str(tmp_path / "tilted-bowl"),
-        ],
-        check=True,
-        capture_output=True,
-    )  # fmt: skip
+    pip_install_isolated(site, tmp_path / "tiny-es", tmp_path / "tilted-bowl")
     own_tests = subprocess.run(
         [sys.executable, "-m", "pytest", "-q", "-p", "no:cacheprovider", "tiny-es", "tilted-bowl"],
         cwd=tmp_path,
