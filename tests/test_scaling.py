@@ -206,3 +206,57 @@ def test_unknown_executor_and_misplaced_scheduler(tmp_path):
                        "--scheduler", "tcp://127.0.0.1:1", cwd=tmp_path)  # fmt: skip
     assert done.returncode == 2 and "--scheduler is for the dask executor" in done.stderr
     assert not os.path.exists(tmp_path / "metaopt.db") or _count(tmp_path / "metaopt.db") == 0
+
+
+def _free_port() -> int:
+    import socket
+
+    with socket.socket() as probe:
+        probe.bind(("127.0.0.1", 0))
+        return probe.getsockname()[1]
+
+
+def test_joining_an_existing_dask_cluster_on_loopback(tmp_path):
+    """`dask scheduler` and `dask worker` started by hand; --scheduler joins them."""
+    address = f"tcp://127.0.0.1:{_free_port()}"
+    port = address.rsplit(":", 1)[1]
+    dask = [sys.executable, "-m", "distributed.cli.dask_scheduler"]
+    quiet = {"stdout": subprocess.DEVNULL, "stderr": subprocess.DEVNULL}
+    scheduler = subprocess.Popen(
+        [*dask, "--host", "127.0.0.1", "--port", port, "--dashboard-address", ":0"], **quiet
+    )
+    worker = subprocess.Popen(
+        [sys.executable, "-m", "distributed.cli.dask_worker", address, "--nworkers", "2",
+         "--nthreads", "1", "--no-dashboard"], **quiet,
+    )  # fmt: skip
+    try:
+        common = [
+            "run",
+            "-o",
+            "hs",
+            "-p",
+            "sphere",
+            "--budget",
+            "40",
+            "--seed",
+            "6",
+            "--batch",
+            "4",
+        ]
+        joined = metaopt_cli(*common, "--scheduler", address, "--db", "dask.db", cwd=tmp_path)
+        assert joined.returncode == 0, joined.stderr
+        serial = metaopt_cli(*common, "--db", "serial.db", cwd=tmp_path)
+        assert serial.returncode == 0, serial.stderr
+        assert _stored(tmp_path / "dask.db") == _stored(tmp_path / "serial.db")
+    finally:
+        for process in (worker, scheduler):
+            process.terminate()
+            process.wait(timeout=30)
+
+
+def test_an_unreachable_scheduler_is_one_clear_error(tmp_path):
+    address = f"tcp://127.0.0.1:{_free_port()}"
+    done = metaopt_cli("run", "-o", "hs", "-p", "sphere", "--scheduler", address, cwd=tmp_path)
+    assert done.returncode == 2
+    assert f"cannot reach the Dask scheduler at {address}" in done.stderr
+    assert "Traceback" not in done.stderr
