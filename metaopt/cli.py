@@ -1,19 +1,26 @@
-"""The ``metaopt`` command line: list, run, runs, show, export."""
+"""The ``metaopt`` command line: list, run, resume, runs, show, export, replay, compare, report,
+new."""
 
 from __future__ import annotations
 
-import os
 import secrets
 import sys
-from pathlib import Path
 
 import click
-from rich.console import Console
 
 from metaopt import display
+from metaopt.cli_common import (
+    build_executor,
+    console,
+    db_option,
+    errors,
+    require_store,
+    scheduling_options,
+)
+from metaopt.cli_compare import compare
 from metaopt.cli_new import new
-from metaopt.errors import ConfigError, MetaoptError
-from metaopt.executors import Executor, SerialExecutor
+from metaopt.cli_report import report, write_replay_video
+from metaopt.errors import MetaoptError
 from metaopt.export import FORMATS, export_run
 from metaopt.plugins import registry
 from metaopt.replay import replay_best
@@ -28,19 +35,7 @@ from metaopt.run_loop import (
     run,
 )
 from metaopt.settings import parse_problem_settings, split_settings
-from metaopt.store import DEFAULT_DB, RunStore
-
-console = Console()
-errors = Console(stderr=True, soft_wrap=True)
-
-db_option = click.option(
-    "--db",
-    "db_path",
-    default=DEFAULT_DB,
-    show_default=True,
-    type=click.Path(dir_okay=False),
-    help="SQLite run store.",
-)
+from metaopt.store import RunStore
 
 
 class MetaoptGroup(click.Group):
@@ -91,36 +86,6 @@ def list_plugins(name: str | None) -> None:
         return
     plugins.optimizer(name)  # raises with close matches among optimizers
     raise AssertionError("unreachable")
-
-
-def scheduling_options(command):
-    """Options that choose where evaluations run (not stored: results never depend on them
-    in sync mode)."""
-    options = [
-        click.option("--executor", default=None,
-                     help="serial, process or dask (or a plugin's) [serial; process with "
-                          "--workers > 1; dask with --scheduler]"),
-        click.option("--workers", type=click.IntRange(min=1), default=None,
-                     help="Parallel evaluations [all cores for process/dask]."),
-        click.option("--scheduler", default=None, metavar="tcp://HOST:PORT",
-                     help="Join this Dask scheduler (implies --executor dask)."),
-    ]  # fmt: skip
-    for option in reversed(options):
-        command = option(command)
-    return command
-
-
-def build_executor(name: str | None, workers: int | None, scheduler: str | None) -> Executor:
-    """The executor the user asked for, with one clear error for a bad combination."""
-    if name is None and scheduler is None and (workers or 1) == 1:
-        return SerialExecutor()  # the default needs no plugin
-    if name is None:
-        name = "dask" if scheduler else ("process" if workers and workers > 1 else "serial")
-    if scheduler and name != "dask":
-        raise ConfigError(f"--scheduler is for the dask executor, not {name!r}")
-    info = registry().executor(name)
-    default_workers = 1 if name == "serial" else (os.cpu_count() or 1)
-    return info.factory(workers or default_workers, scheduler)
 
 
 @main.command("run")
@@ -221,7 +186,7 @@ def resume_command(
     run_id: str, executor: str | None, workers: int | None, scheduler: str | None, db_path: str
 ) -> None:
     """Continue a run that was interrupted or killed, from its last checkpoint."""
-    _require_store(db_path)
+    require_store(db_path)
     plugins = registry()
     with RunStore(db_path) as store:
         record = store.run(run_id)
@@ -262,7 +227,7 @@ def _print_result(result: RunResult, db_path: str, seed: int) -> None:
 @db_option
 def runs_command(db_path: str) -> None:
     """List the runs in a store."""
-    _require_store(db_path)
+    require_store(db_path)
     with RunStore(db_path) as store:
         runs = store.runs()
         counts = {r.id: store.evaluation_counts(r.id) for r in runs}
@@ -278,7 +243,7 @@ def runs_command(db_path: str) -> None:
 @db_option
 def show_command(run_id: str, db_path: str) -> None:
     """Show everything stored about one run."""
-    _require_store(db_path)
+    require_store(db_path)
     with RunStore(db_path) as store:
         record = store.run(run_id)
         console.print(
@@ -295,7 +260,7 @@ def show_command(run_id: str, db_path: str) -> None:
 @db_option
 def export_command(run_id: str, fmt: str, output: str | None, db_path: str) -> None:
     """Write a run's evaluations as CSV or JSON."""
-    _require_store(db_path)
+    require_store(db_path)
     with RunStore(db_path) as store:
         if output is None:
             export_run(store, run_id, fmt, sys.stdout)
@@ -310,12 +275,14 @@ def export_command(run_id: str, fmt: str, output: str | None, db_path: str) -> N
 @click.option("--backend", default=None, help="Physics engine to replay on [the run's own].")
 @click.option("--set", "settings", multiple=True, metavar="NAME=VALUE",
               help="Change a problem parameter for the replay.")  # fmt: skip
+@click.option("--video", type=click.Path(dir_okay=False), default=None,
+              help="Also film the best candidate into this MP4 file.")  # fmt: skip
 @db_option
 def replay_command(
-    run_id: str, backend: str | None, settings: tuple[str, ...], db_path: str
+    run_id: str, backend: str | None, settings: tuple[str, ...], video: str | None, db_path: str
 ) -> None:
     """Re-run a stored run's best candidate and compare with what was stored."""
-    _require_store(db_path)
+    require_store(db_path)
     plugins = registry()
     with RunStore(db_path) as store:
         run_record = store.run(run_id)
@@ -327,11 +294,10 @@ def replay_command(
     if result.replayed.fitness is None:
         errors.print(f"The replay failed: {result.replayed.error}")
         sys.exit(1)
-
-
-def _require_store(db_path: str) -> None:
-    if not Path(db_path).exists():
-        raise MetaoptError(f"no run store at {db_path}; run `metaopt run` first or pass --db PATH")
+    if video is not None:
+        write_replay_video(db_path, run_id, overrides, video)
 
 
 main.add_command(new)
+main.add_command(report)
+main.add_command(compare)

@@ -19,6 +19,17 @@ from metaopt.errors import EvaluationError
 
 Vec3 = tuple[float, float, float]
 
+#: The view every engine's render() gives, so videos from different engines match: the camera
+#: looks at camera_target from this far (m), from this compass direction (degrees: 0 looks along
+#: +x, 90 along +y; 120 sees the robot's right front) and this elevation (degrees, negative: from
+#: above), with this vertical field of view (degrees).
+CAMERA_DISTANCE = 1.5
+CAMERA_AZIMUTH = 120.0
+CAMERA_ELEVATION = -15.0
+CAMERA_FOVY = 45.0
+#: The colour (RGBA, 0 to 1) every engine draws the robot in: orange, apart from any ground.
+ROBOT_RGBA = (0.95, 0.55, 0.2, 1.0)
+
 
 @dataclass(frozen=True)
 class Shape:
@@ -268,6 +279,12 @@ class PhysicsBackend(ABC):
     def restore_state(self, state: Any) -> None:
         """Return to a snapshot taken by save_state in this same backend instance."""
 
+    def render(self, width: int, height: int, camera_target: Vec3) -> np.ndarray:
+        """An image of the scene now, (height, width, 3) uint8 RGB, seen by the CAMERA_* view
+        looking at camera_target (world, m), headless. Optional: engines that cannot draw raise
+        NotImplementedError."""
+        raise NotImplementedError(f"the physics backend {type(self).__name__} cannot render")
+
     def close(self) -> None:  # noqa: B027 - optional
         """Free engine resources."""
 
@@ -284,3 +301,13 @@ class BackendInfo:
     summary: str
     factory: Callable[[RobotDescription, PhysicsSettings], PhysicsBackend]
     default_substeps: int = 10
+
+
+#: A robot problem's ``backend`` parameter may name several engines joined by this, to be
+#: evaluated on all of them ('mujoco+pybullet').
+ENGINE_SEPARATOR = "+"
+
+
+def engine_names(backend: str) -> tuple[str, ...]:
+    """The engines a ``backend`` parameter value names: 'mujoco+pybullet' -> both."""
+    return tuple(name.strip() for name in backend.split(ENGINE_SEPARATOR))

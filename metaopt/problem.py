@@ -6,11 +6,15 @@ import enum
 from abc import ABC, abstractmethod
 from collections.abc import Callable
 from dataclasses import dataclass, field
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from metaopt.params import Param
 from metaopt.space import Space
+
+if TYPE_CHECKING:
+    from matplotlib.figure import Figure
 
 
 class Sense(str, enum.Enum):
@@ -49,6 +53,25 @@ class Problem(ABC):
 
     def close(self) -> None:  # noqa: B027 - optional hook, empty by default
         """Release engines, files or other resources; called once when a run ends."""
+
+    def figures(self, x: np.ndarray, seed: int) -> dict[str, Figure]:
+        """Optional: matplotlib figures of candidate x evaluated with seed (e.g. a robot's joint
+        angles over time), by file stem; ``metaopt report`` saves them beside the convergence
+        figure. Problems without figures of their own raise NotImplementedError."""
+        raise NotImplementedError("draws no figures of its own")
+
+    def video(
+        self,
+        x: np.ndarray,
+        seed: int,
+        frame: Callable[[np.ndarray], None],
+        size: tuple[int, int],
+        fps: int,
+    ) -> None:
+        """Optional: evaluate candidate x with seed and pass ``fps`` images per simulated second
+        to ``frame``, each (height, width, 3) uint8 RGB for size = (width, height); ``metaopt
+        replay --video`` encodes them. Problems that cannot show one raise NotImplementedError."""
+        raise NotImplementedError("cannot show a video")
 
 
 @dataclass(frozen=True)

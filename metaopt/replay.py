@@ -11,6 +11,7 @@ from metaopt.errors import ConfigError, StoreError
 from metaopt.executors import EvaluationTask, Outcome, adopt_problem, evaluate_task
 from metaopt.params import resolve
 from metaopt.plugins import Registry
+from metaopt.problem import ProblemInfo
 from metaopt.store import EvaluationRecord, RunRecord, RunStore
 
 
@@ -24,18 +25,19 @@ class Replay:
     replayed: Outcome
 
 
-def replay_best(
-    store: RunStore, run_id: int | str, plugins: Registry, overrides: dict[str, Any]
-) -> Replay:
-    """Evaluate run ``run_id``'s best candidate again with its seed.
-
-    ``overrides`` changes problem parameters (e.g. ``{"backend": "pybullet"}``); everything else
-    is as stored with the run.
-    """
+def stored_best(store: RunStore, run_id: int | str) -> tuple[RunRecord, EvaluationRecord]:
+    """Run ``run_id`` and its best successful evaluation (StoreError when it has none)."""
     run = store.run(run_id)
     best = store.best_evaluation(run)
     if best is None:
         raise StoreError(f"run {run.id} has no successful evaluation to replay")
+    return run, best
+
+
+def replay_params(
+    run: RunRecord, plugins: Registry, overrides: dict[str, Any]
+) -> tuple[ProblemInfo, dict[str, Any]]:
+    """The run's problem and its stored parameters with ``overrides`` applied and checked."""
     info = plugins.problem(run.problem)
     declared = {p.name for p in info.params}
     for name in overrides:
@@ -44,7 +46,19 @@ def replay_best(
                 f"problem {run.problem!r} has no parameter {name!r}; "
                 f"accepted: {', '.join(sorted(declared)) or 'none'}"
             )
-    params = resolve(info.params, {**run.problem_params, **overrides}, info.name)
+    return info, resolve(info.params, {**run.problem_params, **overrides}, info.name)
+
+
+def replay_best(
+    store: RunStore, run_id: int | str, plugins: Registry, overrides: dict[str, Any]
+) -> Replay:
+    """Evaluate run ``run_id``'s best candidate again with its seed.
+
+    ``overrides`` changes problem parameters (e.g. ``{"backend": "pybullet"}``); everything else
+    is as stored with the run.
+    """
+    run, best = stored_best(store, run_id)
+    info, params = replay_params(run, plugins, overrides)
     problem = info.factory(**params)
     task = EvaluationTask(best.index, np.asarray(best.x), best.seed, info.factory, params)
     try:

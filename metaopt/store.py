@@ -151,9 +151,11 @@ class RunStore:
                 f"{', '.join(sorted(tables))}); give a metaopt store or a new file name"
             )
         if not tables:
+            # Two runs may create the same new file at once: every statement tolerates the other.
             self._connection.executescript(
-                f"BEGIN IMMEDIATE; {_SCHEMA} INSERT INTO meta VALUES ('format', '{FORMAT_NAME}'); "
-                f"INSERT INTO meta VALUES ('schema_version', '{SCHEMA_VERSION}'); COMMIT;"
+                f"BEGIN IMMEDIATE; {_SCHEMA} "
+                f"INSERT OR IGNORE INTO meta VALUES ('format', '{FORMAT_NAME}'); "
+                f"INSERT OR IGNORE INTO meta VALUES ('schema_version', '{SCHEMA_VERSION}'); COMMIT;"
             )
             return
         meta = dict(self._connection.execute("SELECT key, value FROM meta"))

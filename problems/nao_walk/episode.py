@@ -10,7 +10,7 @@ fitness formulas (robust, paper) live here too.
 from __future__ import annotations
 
 import math
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import asdict, dataclass, field
 from typing import Any, Protocol
 
@@ -206,11 +206,16 @@ class EpisodeRunner:
         return z < self.settings.fall_height or self.backend.root_rotation()[2, 2] < self._cos_tilt
 
     def run(
-        self, gait: Gait, record: bool = False, disturbance: Disturbance | None = None
+        self,
+        gait: Gait,
+        record: bool = False,
+        disturbance: Disturbance | None = None,
+        on_step: Callable[[int], None] | None = None,
     ) -> EpisodeResult:
         """One episode: lock phase (all joints held at rest), then gait drives DRIVEN_JOINTS
         until the end or a fall, under ``disturbance`` if given (None: noise-free).
-        ``record`` keeps a per-step trajectory for plots (true angles, not the sensed ones)."""
+        ``record`` keeps a per-step trajectory for plots (true angles, not the sensed ones);
+        ``on_step(steps)`` is called after every walking control step (e.g. to film it)."""
         if disturbance is not None and len(disturbance.sensor_errors) != self._walk_steps:
             raise ValueError(f"the disturbance must cover {self._walk_steps} walking steps")
         backend, targets = self.backend, self._targets
@@ -238,6 +243,8 @@ class EpisodeRunner:
             targets[j3], targets[j4], targets[j5] = out[3], out[4], out[5]
             backend.step(targets)
             steps += 1
+            if on_step is not None:
+                on_step(steps)
             position = backend.root_position()
             z = float(position[2])
             height_min, height_max = min(height_min, z), max(height_max, z)

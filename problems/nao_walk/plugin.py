@@ -2,27 +2,36 @@
 
 The decision vector is the CPG's 10 parameters (controller.cpg_space); evaluate runs one
 15 s episode (episode.py) on the chosen physics backend and returns the fitness and metrics.
+With several backends joined by '+' (``mujoco+pybullet``) it runs the episode on each: the
+fitness and the plain metrics are the worst engine's, and every engine's metrics are added as
+``NAME@ENGINE``.
 """
 
 from __future__ import annotations
 
-from typing import Any
+from collections.abc import Callable
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
 from metaopt import hookimpl
 from metaopt.errors import ConfigError
 from metaopt.params import Param
-from metaopt.physics import PhysicsSettings
+from metaopt.physics import PhysicsSettings, engine_names
 from metaopt.plugins import registry
 from metaopt.problem import Evaluation, Problem, ProblemInfo, Sense
+
+if TYPE_CHECKING:
+    from matplotlib.figure import Figure
 
 from .controller import MatsuokaCpg, cpg_space
 from .episode import FITNESS_KINDS, Disturbance, EpisodeRunner, EpisodeSettings, Gait, fitness
 from .robot import nao
+from .video import film
 
 PARAMS = (
-    Param("backend", str, "mujoco", "physics engine (an installed physics backend plugin)"),
+    Param("backend", str, "mujoco", "physics engine (an installed physics backend plugin), or "
+          "several joined by '+' to score the worst of them"),
     Param("fitness", str, "robust", "robust (monotone, default) or paper (eq. 9 as printed)",
           choices=FITNESS_KINDS),
     Param("duration", float, 15.0, "simulated seconds per episode, lock phase included",
@@ -42,9 +51,9 @@ PARAMS = (
 
 
 class NaoWalk(Problem):
-    """The paper's task on one physics backend. With noise 0 the seed is not used; with noise
-    > 0 it draws the episode's Disturbance. Either way (x, seed) gives the same episode in any
-    process."""
+    """The paper's task on one physics backend (or the worst of several). With noise 0 the seed
+    is not used; with noise > 0 it draws the episode's Disturbance. Either way (x, seed) gives
+    the same episode in any process."""
 
     sense = Sense.MAXIMIZE
     key_metrics = ("distance", "drift", "speed", "time_walked", "fell")
@@ -65,7 +74,11 @@ class NaoWalk(Problem):
             raise ConfigError(
                 f"nao-walk: lock ({lock} s) must be shorter than duration ({duration} s)"
             )
-        self.backend_info = registry().physics_backend(backend)
+        self.engines = engine_names(backend)
+        #: ConfigError for an engine that is not installed, listing the installed ones
+        self.backend_infos = {name: registry().physics_backend(name) for name in self.engines}
+        if len(self.backend_infos) < len(self.engines):
+            raise ConfigError(f"nao-walk: backend {backend!r} names an engine twice")
         self.space = cpg_space()
         self.fitness_kind = fitness
         self.physics = PhysicsSettings(substeps=substeps, servo_gain=servo_gain)
@@ -77,15 +90,21 @@ class NaoWalk(Problem):
             hinge = self.robot.hinges[self.robot.joint_index(joint)]
             limits[joint] = (hinge.lower, hinge.upper)
         self._limits = limits
-        self._runner: EpisodeRunner | None = None
+        self._runners: dict[str, EpisodeRunner] = {}
 
     @property
     def runner(self) -> EpisodeRunner:
-        """The episode runner, its engine built on first use (once per process)."""
-        if self._runner is None:
-            engine = self.backend_info.factory(self.robot, self.physics)
-            self._runner = EpisodeRunner(engine, self.episode)
-        return self._runner
+        """The episode runner on the first (for one backend: the only) engine."""
+        return self.runner_on(self.engines[0])
+
+    def runner_on(self, engine: str) -> EpisodeRunner:
+        """The episode runner on one of this problem's engines, built on first use (once per
+        process)."""
+        runner = self._runners.get(engine)
+        if runner is None:
+            backend = self.backend_infos[engine].factory(self.robot, self.physics)
+            runner = self._runners[engine] = EpisodeRunner(backend, self.episode)
+        return runner
 
     def gait(self, x: np.ndarray) -> Gait:
         """The CPG controller for decision vector x (space order)."""
@@ -103,18 +122,48 @@ class NaoWalk(Problem):
         return Disturbance.draw(self.noise, seed, self.physics.friction, self.runner.walk_steps)
 
     def evaluate(self, x: np.ndarray, seed: int) -> Evaluation:
-        result = self.runner.run(self.gait(x), disturbance=self.disturbance(seed))
+        gait = self.gait(x)
+        if len(self.engines) == 1:
+            return self._evaluate_on(self.engines[0], gait, seed)
+        on_engine = {engine: self._evaluate_on(engine, gait, seed) for engine in self.engines}
+        worst = min(on_engine.values(), key=lambda evaluation: evaluation.fitness)
+        metrics = dict(worst.metrics)
+        for engine, evaluation in on_engine.items():
+            for name, value in evaluation.metrics.items():
+                metrics[f"{name}@{engine}"] = value
+        return Evaluation(worst.fitness, metrics)
+
+    def _evaluate_on(self, engine: str, gait: Gait, seed: int) -> Evaluation:
+        result = self.runner_on(engine).run(gait, disturbance=self.disturbance(seed))
         value = fitness(result, self.fitness_kind, self.episode.duration)
         return Evaluation(value, result.metrics())
 
+    def figures(self, x: np.ndarray, seed: int) -> dict[str, Figure]:
+        """The paper's Figs. 6-10 of candidate x's walk on the first engine (figures.py)."""
+        from .figures import walk_figures  # matplotlib only when drawing
+
+        result = self.runner.run(self.gait(x), record=True, disturbance=self.disturbance(seed))
+        return walk_figures(result, self.engines[0])
+
+    def video(
+        self,
+        x: np.ndarray,
+        seed: int,
+        frame: Callable[[np.ndarray], None],
+        size: tuple[int, int],
+        fps: int,
+    ) -> None:
+        """Film candidate x's walk on the first engine, the camera following it (video.py)."""
+        film(self.runner, self.gait(x), self.disturbance(seed), frame, size, fps)
+
     def close(self) -> None:
-        if self._runner is not None:
-            self._runner.backend.close()
-            self._runner = None
+        while self._runners:
+            _, runner = self._runners.popitem()
+            runner.backend.close()
 
     def __getstate__(self) -> dict[str, Any]:
         # Engines do not pickle; each process builds its own on first use.
-        return {**self.__dict__, "_runner": None}
+        return {**self.__dict__, "_runners": {}}
 
 
 @hookimpl

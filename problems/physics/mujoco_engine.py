@@ -4,18 +4,36 @@ Each hinge gets a velocity actuator (force = KV * (command - joint speed), limit
 ±max_joint_torque), the analogue of the ODE hinge motor of rcssserver3d; the implicit-fast
 integrator keeps that stiff damping stable. The state (time, qpos, qvel, act, ctrl, warm start)
 is saved and restored with mj_getState/mj_setState, which reproduces a run bit for bit.
+render() draws offscreen with mujoco.Renderer (headless OpenGL: EGL, else OSMesa).
 """
 
 from __future__ import annotations
 
+import ctypes.util
+import os
+import sys
 from typing import Any
 from xml.sax.saxutils import quoteattr
+
+# MuJoCo picks its OpenGL platform when first imported; an explicit MUJOCO_GL wins. EGL works
+# without a display or GPU through Mesa's software renderer (Debian: libegl1 libgl1-mesa-dri).
+# Only an installed library is chosen: MUJOCO_GL=osmesa without libOSMesa breaks the import.
+if sys.platform.startswith("linux") and "MUJOCO_GL" not in os.environ:
+    for _platform, _library in (("egl", "EGL"), ("osmesa", "OSMesa")):
+        if ctypes.util.find_library(_library):
+            os.environ["MUJOCO_GL"] = _platform
+            break
 
 import mujoco
 import numpy as np
 
-from metaopt.errors import EvaluationError
+from metaopt.errors import EvaluationError, MetaoptError
 from metaopt.physics import (
+    CAMERA_AZIMUTH,
+    CAMERA_DISTANCE,
+    CAMERA_ELEVATION,
+    CAMERA_FOVY,
+    ROBOT_RGBA,
     PhysicsBackend,
     PhysicsSettings,
     RobotDescription,
@@ -88,9 +106,18 @@ def mjcf(robot: RobotDescription, settings: PhysicsSettings) -> str:
 <option timestep="{settings.timestep(DEFAULT_SUBSTEPS):.10g}" integrator="implicitfast"
         gravity="0 0 -9.81"/>
 <default><joint armature="{ARMATURE}" limited="true"/>
-<geom friction="{mu} 0.005 0.0001"/></default>
+<geom friction="{mu} 0.005 0.0001" rgba="{_vec(ROBOT_RGBA)}"/></default>
+<visual><headlight ambient="0.6 0.6 0.6" diffuse="0.5 0.5 0.5" specular="0 0 0"/></visual>
+<asset>
+<texture name="sky" type="skybox" builtin="gradient" rgb1="1 1 1" rgb2="0.85 0.9 1"
+         width="64" height="64"/>
+<texture name="grid" type="2d" builtin="checker" rgb1="0.94 0.94 0.94" rgb2="0.64 0.73 0.95"
+         width="64" height="64"/>
+<material name="grid" texture="grid" texrepeat="2 2" texuniform="true"/>
+</asset>
 <worldbody>
-<geom name="floor" type="plane" size="0 0 1" contype="0" conaffinity="1"/>
+<geom name="floor" type="plane" size="0 0 1" contype="0" conaffinity="1" material="grid"
+      rgba="1 1 1 1"/>
 {body_xml(root, (0.0, 0.0, -robot.start_height))}
 </worldbody>
 <actuator>
@@ -120,6 +147,12 @@ class MujocoBackend(PhysicsBackend):
         self._feet = [self.model.body(name).id for name in robot.contact_bodies]
         self._bad = self.data.warning[mujoco.mjtWarning.mjWARN_BADQACC]
         self._force = np.zeros(6)
+        self._renderer: mujoco.Renderer | None = None
+        self._camera = mujoco.MjvCamera()
+        self._camera.distance = CAMERA_DISTANCE
+        self._camera.azimuth = CAMERA_AZIMUTH
+        self._camera.elevation = CAMERA_ELEVATION
+        self.model.vis.global_.fovy = CAMERA_FOVY
         self.reset()
 
     def reset(self) -> None:
@@ -186,3 +219,43 @@ class MujocoBackend(PhysicsBackend):
     def restore_state(self, state: Any) -> None:
         mujoco.mj_setState(self.model, self.data, state, _STATE)
         mujoco.mj_forward(self.model, self.data)
+
+    def render(self, width: int, height: int, camera_target: Vec3) -> np.ndarray:
+        renderer = self._renderer
+        if renderer is None or (renderer.width, renderer.height) != (width, height):
+            renderer = self._open_renderer(width, height)
+        self._camera.lookat[:] = camera_target
+        mujoco.mj_kinematics(self.model, self.data)  # poses from qpos (mj_step leaves xpos stale)
+        renderer.update_scene(self.data, self._camera)
+        return renderer.render()
+
+    def _open_renderer(self, width: int, height: int) -> mujoco.Renderer:
+        """An offscreen renderer of this size, shadows and reflections off (speed)."""
+        self._close_renderer()
+        globals_ = self.model.vis.global_
+        globals_.offwidth, globals_.offheight = (
+            max(globals_.offwidth, width),
+            max(globals_.offheight, height),
+        )
+        try:
+            renderer = mujoco.Renderer(self.model, height, width)
+        except Exception as error:  # no headless OpenGL: one clear line, not a traceback
+            platform = os.environ.get("MUJOCO_GL", "unset")
+            raise MetaoptError(
+                f"MuJoCo cannot render offscreen (MUJOCO_GL={platform}: {error}); install "
+                "Mesa's EGL (Debian: apt-get install libegl1 libgl1-mesa-dri) or render with "
+                "--backend pybullet"
+            ) from error
+        renderer.scene.flags[mujoco.mjtRndFlag.mjRND_SHADOW] = False
+        renderer.scene.flags[mujoco.mjtRndFlag.mjRND_REFLECTION] = False
+        self._renderer = renderer
+        return renderer
+
+    def _close_renderer(self) -> None:
+        """Free the offscreen renderer and its OpenGL context, if one is open."""
+        if self._renderer is not None:
+            self._renderer.close()
+            self._renderer = None
+
+    def close(self) -> None:
+        self._close_renderer()

@@ -3,6 +3,7 @@
 Each hinge is driven with VELOCITY_CONTROL and a force limit, PyBullet's analogue of the ODE
 hinge motor of rcssserver3d. One stepSimulation call advances a control period in ``substeps``
 sub-steps (setPhysicsEngineParameter numSubSteps). Every instance has its own DIRECT client.
+render() uses PyBullet's built-in software renderer (TinyRenderer: no OpenGL needed).
 """
 
 from __future__ import annotations
@@ -17,6 +18,11 @@ import pybullet
 
 from metaopt.errors import EvaluationError
 from metaopt.physics import (
+    CAMERA_AZIMUTH,
+    CAMERA_DISTANCE,
+    CAMERA_ELEVATION,
+    CAMERA_FOVY,
+    ROBOT_RGBA,
     Body,
     PhysicsBackend,
     PhysicsSettings,
@@ -114,6 +120,7 @@ class PybulletBackend(PhysicsBackend):
                 self._robot, link, lateralFriction=1.0, linearDamping=0.0, angularDamping=0.0,
                 **self._call,
             )  # fmt: skip
+            pybullet.changeVisualShape(self._robot, link, rgbaColor=ROBOT_RGBA, **self._call)
         n = len(robot.hinges)
         self._angles = np.zeros(n)
         self._command = np.zeros(n)
@@ -195,6 +202,18 @@ class PybulletBackend(PhysicsBackend):
         state_id, self._steps = state
         pybullet.restoreState(stateId=state_id, **self._call)
         self._read()
+
+    def render(self, width: int, height: int, camera_target: Vec3) -> np.ndarray:
+        # PyBullet's yaw 0 looks along +y where MuJoCo's azimuth 0 looks along +x.
+        view = pybullet.computeViewMatrixFromYawPitchRoll(
+            camera_target, CAMERA_DISTANCE, CAMERA_AZIMUTH - 90.0, CAMERA_ELEVATION, 0.0, 2
+        )
+        projection = pybullet.computeProjectionMatrixFOV(CAMERA_FOVY, width / height, 0.05, 50.0)
+        _, _, rgba, _, _ = pybullet.getCameraImage(
+            width, height, view, projection, renderer=pybullet.ER_TINY_RENDERER,
+            flags=pybullet.ER_NO_SEGMENTATION_MASK, **self._call,
+        )  # fmt: skip
+        return np.reshape(rgba, (height, width, 4))[:, :, :3].astype(np.uint8)
 
     def close(self) -> None:
         if pybullet.isConnected(self._client):

@@ -1,0 +1,157 @@
+"""`metaopt compare`: run an experiment's grid (or what is left of it) and compare its cells."""
+
+from __future__ import annotations
+
+import sys
+from collections import Counter
+from pathlib import Path
+
+import click
+
+from metaopt import display
+from metaopt.cli_common import build_executor, console, db_option, errors, scheduling_options
+from metaopt.comparison import compare as compare_cells
+from metaopt.errors import ConfigError
+from metaopt.experiment import Experiment, experiment_from_flags, load_experiment
+from metaopt.experiment_runner import run_experiment
+from metaopt.experiment_store import ExperimentStore
+from metaopt.plugins import Registry, registry
+from metaopt.result_table import ResultTable
+from metaopt.run_loop import RunInterrupted
+from metaopt.transfer import replay_on_other_engines, transfer_table
+
+DEFAULT_SEEDS = 5
+
+
+@click.command("compare")
+@click.argument("experiment_file", required=False, type=click.Path(dir_okay=False))
+@click.option(
+    "--optimizer",
+    "-o",
+    "optimizers",
+    multiple=True,
+    help="Flags form: an optimizer (repeat for each).",
+)
+@click.option("--problem", "-p", "problem", default=None, help="Flags form: the problem.")
+@click.option(
+    "--seeds",
+    type=click.IntRange(min=1),
+    default=None,
+    help=f"Flags form: seeds 1..N [{DEFAULT_SEEDS}].",
+)
+@click.option(
+    "--budget",
+    type=click.IntRange(min=1),
+    default=None,
+    help="Flags form: evaluations per run [the problem's default].",
+)
+@click.option(
+    "--set",
+    "settings",
+    multiple=True,
+    metavar="NAME=VALUE",
+    help="Flags form: a problem parameter; repeat a name for a grid over its values.",
+)
+@click.option(
+    "--target",
+    type=float,
+    default=None,
+    help="Flags form: success = best fitness reaches it (sense-aware).",
+)
+@click.option("--name", default=None, help="Flags form: the experiment's name in the store.")
+@click.option(
+    "--transfer", is_flag=True, help="Also replay each run's best on the other physics engines."
+)
+@click.option(
+    "--csv",
+    "csv_path",
+    type=click.Path(dir_okay=False),
+    default=None,
+    help="Write the comparison table as CSV.",
+)
+@click.option(
+    "--transfer-csv",
+    "transfer_csv_path",
+    type=click.Path(dir_okay=False),
+    default=None,
+    help="Write the transfer table as CSV (with --transfer).",
+)
+@scheduling_options
+@db_option
+def compare(
+    experiment_file: str | None,
+    optimizers: tuple[str, ...],
+    problem: str | None,
+    seeds: int | None,
+    budget: int | None,
+    settings: tuple[str, ...],
+    target: float | None,
+    name: str | None,
+    transfer: bool,
+    csv_path: str | None,
+    transfer_csv_path: str | None,
+    executor: str | None,
+    workers: int | None,
+    scheduler: str | None,
+    db_path: str,
+) -> None:
+    """Run optimizers x problem settings x seeds (skipping finished runs, resuming unfinished
+    ones) and compare them: an experiment file (TOML, docs/comparing.md) or -o A -o B -p P."""
+    plugins = registry()
+    flags = dict(optimizers=optimizers, problem=problem, seeds=seeds, budget=budget,
+                 settings=settings, target=target, name=name)  # fmt: skip
+    experiment = _experiment(experiment_file, flags, plugins)
+    if transfer_csv_path is not None and not transfer:
+        raise ConfigError("--transfer-csv writes the transfer table: add --transfer")
+    with ExperimentStore(db_path) as store:
+        try:
+            done = run_experiment(
+                experiment, store, plugins,
+                lambda: build_executor(executor, workers, scheduler),
+                lambda label: display.RichProgress(console, label),
+            )  # fmt: skip
+        except RunInterrupted as stop:
+            errors.print(
+                f"Interrupted: run {stop.run_id} stopped with {stop.stored} evaluations stored "
+                f"in {db_path}. Run the same `metaopt compare` again to go on from there."
+            )
+            sys.exit(130)
+        counts = Counter(d.action for d in done)
+        console.print(
+            f"experiment {experiment.name!r}: {counts['ran']} run(s) ran, {counts['resumed']} "
+            f"resumed, {counts['skipped']} already finished (in {db_path})"
+        )
+        _show(compare_cells(experiment, store, plugins), csv_path)
+        if transfer:
+            transfers = replay_on_other_engines(experiment, store, plugins)
+            _show(transfer_table(experiment, transfers, plugins), transfer_csv_path)
+
+
+def _experiment(path: str | None, flags: dict, plugins: Registry) -> Experiment:
+    """The experiment from the file or from the flags; both at once, or neither, is an error."""
+    given = [
+        f"--{k}" if k != "optimizers" else "-o" for k, v in flags.items() if v not in (None, ())
+    ]
+    if path is not None:
+        if given:
+            raise ConfigError(
+                f"{path}: give an experiment file or the flags form, not both "
+                f"({', '.join(given)} given)"
+            )
+        return load_experiment(path, plugins)
+    if not flags["optimizers"] or flags["problem"] is None:
+        raise ConfigError(
+            "give an experiment file (metaopt compare EXPERIMENT.toml) or at least one "
+            "-o OPTIMIZER and -p PROBLEM"
+        )
+    return experiment_from_flags(
+        **{**flags, "seeds": flags["seeds"] or DEFAULT_SEEDS}, plugins=plugins
+    )
+
+
+def _show(table: ResultTable, csv_path: str | None) -> None:
+    console.print(table.to_rich())
+    if csv_path is not None:
+        with Path(csv_path).open("w", newline="") as handle:
+            table.write_csv(handle)
+        errors.print(f"wrote {len(table.rows)} rows to {csv_path}")

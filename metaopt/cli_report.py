@@ -1,0 +1,65 @@
+"""``metaopt report RUN...``: PNG figures of runs; and the video part of ``metaopt replay``.
+
+matplotlib and the renderers are imported when a command draws, not when the CLI starts.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Any
+
+import click
+
+from metaopt.cli_common import db_option, require_store
+from metaopt.convergence import GROUP_BY
+from metaopt.plugins import registry
+from metaopt.store import RunStore
+
+
+@click.command("report")
+@click.argument("run_ids", nargs=-1, required=True, metavar="RUN...")
+@click.option(
+    "--out",
+    "out_dir",
+    type=click.Path(file_okay=False, path_type=Path),
+    default=None,
+    help="Folder for the PNG files [report-RUN; report-compare for several runs].",
+)
+@click.option(
+    "--group-by",
+    type=click.Choice(GROUP_BY),
+    default="setup",
+    show_default=True,
+    help="Several runs: one band per optimizer and parameters, or per optimizer name.",
+)
+@db_option
+def report(run_ids: tuple[str, ...], out_dir: Path | None, group_by: str, db_path: str) -> None:
+    """Draw a run's convergence and its best candidate's figures (nao-walk: joint angles,
+    drift, torso height); or, for several runs, median and quartile bands of their best so far."""
+    from metaopt.report import comparison_figures, run_figures, write_figures
+
+    require_store(db_path)
+    with RunStore(db_path) as store:
+        if len(run_ids) == 1:
+            figures = run_figures(store, run_ids[0], registry())
+        else:
+            figures = comparison_figures(store, list(run_ids), group_by)
+    default = f"report-{run_ids[0]}" if len(run_ids) == 1 else "report-compare"
+    paths = write_figures(figures, out_dir or Path(default))
+    for path in paths:
+        click.echo(f"wrote {path}")
+    if figures.note:
+        click.echo(f"Note: {figures.note}.", err=True)
+
+
+def write_replay_video(db_path: str, run_id: str, overrides: dict[str, Any], path: str) -> None:
+    """``metaopt replay RUN --video PATH``: film the replayed best candidate into PATH."""
+    from metaopt.video import VIDEO_FPS, VIDEO_SIZE, film_best
+
+    with RunStore(db_path) as store:
+        frames = film_best(store, run_id, registry(), overrides, Path(path))
+    width, height = VIDEO_SIZE
+    click.echo(
+        f"wrote {path}: {frames} frames, {width}x{height}, {VIDEO_FPS} fps "
+        f"({frames / VIDEO_FPS:.1f} s)"
+    )

@@ -1,0 +1,264 @@
+"""An experiment: a grid of optimizers (each with its own budget and parameters) × problem
+settings × seeds, read from a TOML file or from `metaopt compare` flags and checked against
+the plugins' declarations before anything runs."""
+
+from __future__ import annotations
+
+import itertools
+import json
+from collections.abc import Iterable
+from dataclasses import dataclass, field, fields
+from pathlib import Path
+from typing import Any
+
+from metaopt.errors import ConfigError
+from metaopt.params import resolve, suggest
+from metaopt.plugins import Registry
+from metaopt.problem import ProblemInfo
+from metaopt.run_loop import RunSettings, RunSpec
+from metaopt.settings import parse_problem_settings
+
+_TOP_KEYS = ("name", "problem", "seeds", "target", "budget", "problem_settings", "optimizers")
+_OPTIMIZER_KEYS = ("label", "name", "budget", "params", "settings")
+
+
+@dataclass(frozen=True)
+class OptimizerEntry:
+    """One optimizer of the experiment: its label in tables, plugin name, budget, parameters."""
+
+    label: str
+    name: str
+    budget: int
+    params: dict[str, Any] = field(default_factory=dict)
+    settings: RunSettings = field(default_factory=RunSettings)
+
+
+@dataclass(frozen=True)
+class Cell:
+    """One optimizer on one combination of problem settings; run once per seed."""
+
+    optimizer: OptimizerEntry
+    problem_params: dict[str, Any]
+    #: the problem parameters that differ between cells (the grid's columns)
+    varying: tuple[str, ...] = ()
+
+    @property
+    def setting(self) -> str:
+        """The varying problem settings as text ('backend=mujoco'); '' when none vary."""
+        return ", ".join(f"{name}={self.problem_params[name]}" for name in self.varying)
+
+    @property
+    def key(self) -> str:
+        """The cell's identity in the run store: label and problem settings."""
+        return f"{self.optimizer.label} {json.dumps(self.problem_params, sort_keys=True)}"
+
+
+@dataclass(frozen=True)
+class Experiment:
+    """Optimizers × problem-settings grid × seeds on one problem, with an optional target."""
+
+    name: str
+    problem: str
+    seeds: tuple[int, ...]
+    optimizers: tuple[OptimizerEntry, ...]
+    #: problem parameter -> the values the grid takes (each combination is a column)
+    problem_grid: dict[str, list[Any]] = field(default_factory=dict)
+    #: success when a run's best fitness reaches it (sense-aware)
+    target: float | None = None
+
+    @property
+    def fixed_settings(self) -> str:
+        """The problem settings every cell shares, as text ('duration=3.0, lock=1.0')."""
+        return ", ".join(
+            f"{name}={values[0]}" for name, values in self.problem_grid.items() if len(values) == 1
+        )
+
+    def cells(self) -> list[Cell]:
+        """Every cell, grouped by problem setting, optimizers in the order given."""
+        names = list(self.problem_grid)
+        varying = tuple(name for name in names if len(self.problem_grid[name]) > 1)
+        combinations = itertools.product(*(self.problem_grid[n] for n in names))
+        return [
+            Cell(optimizer, dict(zip(names, values)), varying)
+            for values in combinations
+            for optimizer in self.optimizers
+        ]
+
+    def spec(self, cell: Cell, seed: int) -> RunSpec:
+        """The run of ``cell`` with ``seed``."""
+        entry = cell.optimizer
+        return RunSpec(
+            optimizer=entry.name,
+            problem=self.problem,
+            budget=entry.budget,
+            seed=seed,
+            optimizer_params=dict(entry.params),
+            problem_params=dict(cell.problem_params),
+            settings=entry.settings,
+        )
+
+
+def load_experiment(path: str | Path, plugins: Registry) -> Experiment:
+    """The experiment in a TOML file; ConfigError naming the file and what is wrong."""
+    path = Path(path)
+    try:
+        import tomllib
+    except ModuleNotFoundError:  # Python 3.10
+        raise ConfigError(
+            f"{path}: experiment files need Python 3.11 or later (tomllib); on 3.10 use the "
+            "flags form: metaopt compare -o NAME -p NAME ..."
+        ) from None
+    try:
+        raw = tomllib.loads(path.read_text(encoding="utf-8"))
+    except FileNotFoundError:
+        raise ConfigError(f"{path}: no such experiment file") from None
+    except (OSError, UnicodeDecodeError) as error:
+        raise ConfigError(f"{path}: cannot read it: {error}") from None
+    except tomllib.TOMLDecodeError as error:
+        raise ConfigError(f"{path}: not valid TOML: {error}") from None
+    raw.setdefault("name", path.stem)
+    return _checked(raw, str(path), plugins)
+
+
+def experiment_from_flags(
+    *,
+    optimizers: Iterable[str],
+    problem: str,
+    seeds: int,
+    budget: int | None,
+    settings: Iterable[str],
+    target: float | None,
+    name: str | None,
+    plugins: Registry,
+) -> Experiment:
+    """The experiment `metaopt compare -o A -o B -p P ...` describes. ``settings`` are problem
+    NAME=VALUE pairs; a name given several times makes a grid over its values."""
+    problem_info = plugins.problem(problem)
+    grid: dict[str, list[Any]] = {}
+    for pair in settings:
+        for key, value in parse_problem_settings([pair], problem_info).items():
+            grid.setdefault(key, []).append(value)
+    labels = list(optimizers)
+    budget = problem_info.default_budget if budget is None else budget
+    raw = {
+        "name": name or f"{'-vs-'.join(labels)}-on-{problem}-{budget}",
+        "problem": problem,
+        "seeds": seeds,
+        "budget": budget,
+        "problem_settings": grid,
+        "optimizers": [{"name": label} for label in labels],
+    }
+    if target is not None:
+        raw["target"] = target
+    return _checked(raw, "command line", plugins)
+
+
+def _checked(raw: dict[str, Any], source: str, plugins: Registry) -> Experiment:
+    """Validate a decoded experiment; every ConfigError starts with ``source``."""
+    try:
+        return _experiment(raw, plugins)
+    except ConfigError as error:
+        raise ConfigError(f"{source}: {error}") from None
+
+
+def _experiment(raw: dict[str, Any], plugins: Registry) -> Experiment:
+    _known_keys(raw, _TOP_KEYS, "the experiment")
+    name = raw.get("name")
+    if not isinstance(name, str) or not name:
+        raise ConfigError(f"'name' must be a non-empty string, got {name!r}")
+    if "problem" not in raw:
+        raise ConfigError("no 'problem' given (e.g. problem = \"sphere\")")
+    problem_info = plugins.problem(str(raw["problem"]))
+    grid = _problem_grid(raw.get("problem_settings", {}), problem_info)
+    default_budget = raw.get("budget")
+    entries = raw.get("optimizers")
+    if not isinstance(entries, list) or not entries:
+        raise ConfigError("no optimizers given; add at least one optimizer with a name and budget")
+    optimizers = tuple(
+        _optimizer_entry(entry, number, default_budget, plugins)
+        for number, entry in enumerate(entries, start=1)
+    )
+    labels = [entry.label for entry in optimizers]
+    for label in labels:
+        if labels.count(label) > 1:
+            raise ConfigError(f"optimizer label {label!r} is used twice; give each a 'label'")
+    target = raw.get("target")
+    if target is not None and (isinstance(target, bool) or not isinstance(target, int | float)):
+        raise ConfigError(f"'target' must be a number, got {target!r}")
+    return Experiment(
+        name=name,
+        problem=problem_info.name,
+        seeds=_seeds(raw.get("seeds")),
+        optimizers=optimizers,
+        problem_grid=grid,
+        target=None if target is None else float(target),
+    )
+
+
+def _seeds(value: Any) -> tuple[int, ...]:
+    """A list of distinct integer seeds, or N meaning seeds 1..N."""
+    if isinstance(value, int) and not isinstance(value, bool) and value >= 1:
+        return tuple(range(1, value + 1))
+    if (
+        isinstance(value, list)
+        and value
+        and all(isinstance(s, int) and not isinstance(s, bool) for s in value)
+    ):
+        if len(set(value)) < len(value):
+            raise ConfigError(f"'seeds' lists a seed twice: {value}")
+        return tuple(value)
+    raise ConfigError(f"'seeds' must be a list of integers or a count N >= 1, got {value!r}")
+
+
+def _problem_grid(table: Any, problem_info: ProblemInfo) -> dict[str, list[Any]]:
+    """Each problem parameter's values (a scalar is one value), checked against the problem."""
+    if not isinstance(table, dict):
+        raise ConfigError("problem_settings must be a table of parameter = list of values")
+    grid = {name: v if isinstance(v, list) else [v] for name, v in table.items()}
+    for name, values in grid.items():
+        if not values:
+            raise ConfigError(f"problem setting {name!r} has no values")
+        for value in values:
+            resolve(problem_info.params, {name: value}, f"problem {problem_info.name!r}")
+    return grid
+
+
+def _optimizer_entry(
+    entry: Any, number: int, default_budget: Any, plugins: Registry
+) -> OptimizerEntry:
+    where = f"optimizer entry {number}"
+    if not isinstance(entry, dict) or "name" not in entry:
+        raise ConfigError(f"{where} needs a 'name' (an optimizer, e.g. name = \"hs\")")
+    _known_keys(entry, _OPTIMIZER_KEYS, where)
+    where = f"{where} ({entry['name']!r})"
+    try:
+        info = plugins.optimizer(str(entry["name"]))
+    except ConfigError as error:
+        raise ConfigError(f"{where}: {error}") from None
+    budget = entry.get("budget", default_budget)
+    if budget is None:
+        raise ConfigError(f"{where} has no 'budget' and the experiment sets none")
+    if isinstance(budget, bool) or not isinstance(budget, int) or budget < 1:
+        raise ConfigError(f"{where}: 'budget' must be a positive integer, got {budget!r}")
+    params = entry.get("params", {})
+    settings = entry.get("settings", {})
+    if not isinstance(params, dict) or not isinstance(settings, dict):
+        raise ConfigError(f"{where}: 'params' and 'settings' must be tables")
+    _known_keys(settings, tuple(f.name for f in fields(RunSettings)), f"{where} settings")
+    try:
+        resolve(info.params, params, f"optimizer {info.name!r}")
+        run_settings = RunSettings(**settings)
+        run_settings.check(budget)
+    except (ConfigError, TypeError) as error:
+        raise ConfigError(f"{where}: {error}") from None
+    label = entry.get("label", info.name)
+    return OptimizerEntry(str(label), info.name, budget, dict(params), run_settings)
+
+
+def _known_keys(table: dict[str, Any], known: tuple[str, ...], where: str) -> None:
+    for key in table:
+        if key not in known:
+            raise ConfigError(
+                f"{where} has an unknown key {key!r}.{suggest(key, known)} "
+                f"Accepted: {', '.join(known)}"
+            )

@@ -1,0 +1,64 @@
+"""A run store that also knows which runs make up each experiment's cells.
+
+Membership lives in one extra table, ``experiment_runs(experiment, cell, seed, run_id)``, in
+the same SQLite file; the runs and evaluations tables are untouched, so every other command
+(`metaopt runs`, `show`, `export`, `replay`, `resume`) sees experiment runs as ordinary runs.
+A run joins its cell the moment it is created, so a compare killed mid-run leaves a member
+that the next compare resumes rather than an orphan it would run again.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Iterator
+from contextlib import contextmanager
+from pathlib import Path
+from typing import Any
+
+from metaopt.store import DEFAULT_DB, RunRecord, RunStore
+
+_MEMBERSHIP_SCHEMA = """
+CREATE TABLE IF NOT EXISTS experiment_runs (
+    experiment TEXT NOT NULL,
+    cell TEXT NOT NULL,
+    seed INTEGER NOT NULL,
+    run_id INTEGER NOT NULL REFERENCES runs(id),
+    PRIMARY KEY (experiment, cell, seed)
+);
+"""
+
+
+class ExperimentStore(RunStore):
+    """A RunStore with experiment membership: which run is (experiment, cell, seed)."""
+
+    def __init__(self, path: str | Path = DEFAULT_DB) -> None:
+        super().__init__(path)
+        self._connection.executescript(_MEMBERSHIP_SCHEMA)
+        self._joining: tuple[str, str, int] | None = None
+
+    @contextmanager
+    def joining(self, experiment: str, cell: str, seed: int) -> Iterator[None]:
+        """The run created inside becomes the member (experiment, cell, seed)."""
+        self._joining = (experiment, cell, seed)
+        try:
+            yield
+        finally:
+            self._joining = None
+
+    def create_run(self, **fields: Any) -> int:
+        """Insert a new run (RunStore.create_run) and record its membership, if joining."""
+        run_id = super().create_run(**fields)
+        if self._joining is not None:
+            with self._lock, self._transaction():
+                self._connection.execute(
+                    "INSERT OR REPLACE INTO experiment_runs VALUES (?, ?, ?, ?)",
+                    (*self._joining, run_id),
+                )
+        return run_id
+
+    def member(self, experiment: str, cell: str, seed: int) -> RunRecord | None:
+        """The run recorded as (experiment, cell, seed), or None."""
+        row = self._connection.execute(
+            "SELECT run_id FROM experiment_runs WHERE experiment = ? AND cell = ? AND seed = ?",
+            (experiment, cell, seed),
+        ).fetchone()
+        return None if row is None else self.run(row[0])

@@ -1,0 +1,62 @@
+"""Matplotlib figures of convergence curves (the paper's Figs. 4-5) and of several runs' bands.
+
+Figures are built with matplotlib.figure.Figure (no pyplot, no display: headless anywhere) and
+returned unsaved, so their data can be checked; save_figure writes them as small PNGs.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+from matplotlib.figure import Figure
+
+from metaopt.convergence import Band, Convergence
+
+#: Resolution of saved figures, dots per inch (6.4 x 4.8 in -> 640 x 480 px).
+DPI = 100
+
+
+def fitness_label(maximize: bool) -> str:
+    """The y-axis label: fitness, and which way is better."""
+    return f"fitness ({'higher' if maximize else 'lower'} is better)"
+
+
+def convergence_figure(curves: Convergence, title: str) -> Figure:
+    """Best so far and the trailing mean (failed evaluations excluded) against evaluations."""
+    figure = Figure(figsize=(6.4, 4.2), layout="constrained")
+    ax = figure.subplots()
+    ax.plot(curves.evaluations, curves.mean, color="tab:gray", lw=0.9,
+            label=f"mean of the last {curves.window} evaluations (failed excluded)")  # fmt: skip
+    ax.plot(curves.evaluations, curves.best, color="tab:red", lw=1.6, label="best so far")
+    ax.set_xlabel("evaluations")
+    ax.set_ylabel(fitness_label(curves.maximize))
+    failed = (
+        f"\n{curves.failed} of {len(curves.fitness)} evaluations failed" if curves.failed else ""
+    )
+    ax.set_title(f"{title}{failed}", fontsize="medium")
+    ax.legend(fontsize="small")
+    ax.grid(alpha=0.3)
+    return figure
+
+
+def bands_figure(bands: dict[str, Band], maximize: bool, title: str) -> Figure:
+    """Per label, the median best so far over runs with its interquartile band."""
+    figure = Figure(figsize=(6.4, 4.2), layout="constrained")
+    ax = figure.subplots()
+    for label, band in bands.items():
+        (line,) = ax.plot(band.evaluations, band.median, lw=1.6,
+                          label=f"{label} ({band.runs} runs)")  # fmt: skip
+        ax.fill_between(band.evaluations, band.lower, band.upper, color=line.get_color(),
+                        alpha=0.2, lw=0)  # fmt: skip
+    ax.set_xlabel("evaluations")
+    ax.set_ylabel(f"best so far, {fitness_label(maximize)}")
+    ax.set_title(f"{title}\nmedian over runs, band: 25th to 75th percentile", fontsize="medium")
+    ax.legend(fontsize="small")
+    ax.grid(alpha=0.3)
+    return figure
+
+
+def save_figure(figure: Figure, path: Path) -> Path:
+    """Write figure as a PNG at DPI; returns path."""
+    figure.savefig(path, dpi=DPI)
+    return path

@@ -1,0 +1,69 @@
+"""A table of named fields shown two ways from the same rows: a rich table in the terminal
+(related fields share a column, e.g. 'median (IQR)') and CSV with one column per field."""
+
+from __future__ import annotations
+
+import csv
+from dataclasses import dataclass
+from typing import Any, TextIO
+
+from rich.table import Table
+
+Row = dict[str, Any]
+#: significant digits of numbers in the terminal (the CSV has them all)
+TERMINAL_DIGITS = 4
+
+
+@dataclass(frozen=True)
+class Column:
+    """A terminal column: its header and the row fields it shows through ``template``."""
+
+    header: str
+    fields: tuple[str, ...]
+    template: str = "{}"
+    #: fractions shown as percentages
+    percent: bool = False
+    #: False: in the CSV only (detail that would crowd the terminal)
+    in_terminal: bool = True
+
+    def render(self, row: Row) -> str:
+        """The text of this column for ``row``."""
+        return self.template.format(*(self.format(row.get(name)) for name in self.fields))
+
+    def format(self, value: Any) -> str:
+        """One field's text: '-' for missing, a percentage, or 4 significant digits."""
+        if value is None:
+            return "-"
+        if isinstance(value, str | int):
+            return str(value)
+        return f"{value:.0%}" if self.percent else f"{value:.{TERMINAL_DIGITS}g}"
+
+
+@dataclass
+class ResultTable:
+    """Rows of named fields with the columns that show them."""
+
+    title: str
+    columns: list[Column]
+    rows: list[Row]
+
+    @property
+    def fields(self) -> list[str]:
+        """Every field, in column order (the CSV header)."""
+        return [name for column in self.columns for name in column.fields]
+
+    def to_rich(self) -> Table:
+        """The terminal table (the columns ``in_terminal``)."""
+        shown = [column for column in self.columns if column.in_terminal]
+        table = Table(title=self.title, title_justify="left")
+        for index, column in enumerate(shown):
+            table.add_column(column.header, justify="left" if index < 2 else "right")
+        for row in self.rows:
+            table.add_row(*(column.render(row) for column in shown))
+        return table
+
+    def write_csv(self, handle: TextIO) -> None:
+        """Every field of every row at full precision (empty where missing)."""
+        writer = csv.DictWriter(handle, fieldnames=self.fields, lineterminator="\n")
+        writer.writeheader()
+        writer.writerows({name: row.get(name) for name in self.fields} for row in self.rows)

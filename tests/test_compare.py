@@ -1,0 +1,266 @@
+"""`metaopt compare`: experiments from flags and files, the grid run and resumed through the run
+store, the comparison table (medians, IQR, success, rank-sum p-values) checked against the
+stored data and its CSV, bad experiment files, and cross-engine transfer checked against
+replays."""
+
+from __future__ import annotations
+
+import contextlib
+import csv
+import io
+from pathlib import Path
+
+import numpy as np
+import pytest
+from scipy.stats import mannwhitneyu
+
+from metaopt.comparison import ProblemTraits, compare
+from metaopt.errors import ConfigError
+from metaopt.executors import SerialExecutor
+from metaopt.experiment import Experiment, experiment_from_flags, load_experiment
+from metaopt.experiment_runner import run_experiment
+from metaopt.experiment_store import ExperimentStore
+from metaopt.plugins import registry
+from metaopt.problem import Sense
+from metaopt.replay import replay_best
+from metaopt.result_table import ResultTable
+from metaopt.run_loop import RunInterrupted, RunSettings
+from metaopt.transfer import replay_on_other_engines, transfer_table
+from tests.conftest import metaopt_cli
+
+SPHERE_FLAGS = ("-o", "hs", "-o", "random", "-p", "sphere", "--seeds", "5", "--budget", "300",
+                "--set", "dim=5")  # fmt: skip
+
+
+def _quiet(label: str) -> contextlib.AbstractContextManager[None]:
+    return contextlib.nullcontext()
+
+
+def _run(experiment: Experiment, store: ExperimentStore, watch=_quiet):
+    return run_experiment(experiment, store, registry(), SerialExecutor, watch)
+
+
+def _flags_experiment(**overrides) -> Experiment:
+    given = {"optimizers": ["hs"], "problem": "sphere", "seeds": 2, "budget": 200,
+             "settings": ["dim=3"], "target": None, "name": None, **overrides}  # fmt: skip
+    return experiment_from_flags(**given, plugins=registry())
+
+
+def _best_fitnesses(store: ExperimentStore, experiment: Experiment) -> dict[str, list[float]]:
+    """Each cell's best fitness per seed, straight from the store."""
+    found = {}
+    for cell in experiment.cells():
+        runs = [store.member(experiment.name, cell.key, seed) for seed in experiment.seeds]
+        found[cell.optimizer.label] = [store.best_evaluation(run).fitness for run in runs]
+    return found
+
+
+def _csv_rows(text: str) -> list[dict[str, object]]:
+    def value(text: str) -> object:
+        if text == "":
+            return None
+        for kind in (int, float):
+            with contextlib.suppress(ValueError):
+                return kind(text)
+        return text
+
+    return [{k: value(v) for k, v in row.items()} for row in csv.DictReader(io.StringIO(text))]
+
+
+def test_flags_form_table_equals_the_store_and_reruns_nothing(tmp_path: Path) -> None:
+    done = metaopt_cli("compare", *SPHERE_FLAGS, "--csv", "out.csv", cwd=tmp_path)
+    assert done.returncode == 0, done.stderr
+    assert "10 run(s) ran, 0 resumed, 0 already finished" in done.stdout
+    rows = {row["optimizer"]: row for row in _csv_rows((tmp_path / "out.csv").read_text())}
+    experiment = _flags_experiment(
+        optimizers=["hs", "random"], seeds=5, budget=300, settings=["dim=5"]
+    )
+    with ExperimentStore(tmp_path / "metaopt.db") as store:
+        fitnesses = _best_fitnesses(store, experiment)
+        assert len(store.runs()) == 10
+    for label, values in fitnesses.items():
+        q25, q50, q75 = np.percentile(values, [25, 50, 75])
+        assert rows[label]["fitness_median"] == pytest.approx(q50, rel=1e-15)
+        assert rows[label]["fitness_iqr"] == pytest.approx(q75 - q25, rel=1e-15)
+        assert (rows[label]["finished"], rows[label]["planned"]) == (5, 5)
+    # hs clearly beats random on the sphere: hs is the best cell, random's p-value is scipy's
+    assert rows["hs"]["p_value"] is None
+    expected = mannwhitneyu(fitnesses["hs"], fitnesses["random"], alternative="two-sided")
+    assert rows["random"]["p_value"] == pytest.approx(expected.pvalue, rel=1e-12)
+    assert rows["random"]["p_value"] < 0.01
+
+    again = metaopt_cli("compare", *SPHERE_FLAGS, "--csv", "again.csv", cwd=tmp_path)
+    assert again.returncode == 0, again.stderr
+    assert "0 run(s) ran, 0 resumed, 10 already finished" in again.stdout
+    assert (tmp_path / "again.csv").read_text() == (tmp_path / "out.csv").read_text()
+    with ExperimentStore(tmp_path / "metaopt.db") as store:
+        assert len(store.runs()) == 10
+
+
+def test_the_csv_holds_the_values_the_terminal_table_shows(tmp_path: Path) -> None:
+    experiment = _flags_experiment(optimizers=["hs", "random"], seeds=3, target=2.0)
+    with ExperimentStore(tmp_path / "c.db") as store:
+        _run(experiment, store)
+        table = compare(experiment, store, registry())
+    handle = io.StringIO()
+    table.write_csv(handle)
+    rows = _csv_rows(handle.getvalue())
+    assert [list(row) for row in rows] == [table.fields] * 2
+    rich = table.to_rich()
+    shown = [column for column in table.columns if column.in_terminal]
+    assert [c.header for c in rich.columns] == [c.header for c in shown]
+    for rich_column, column in zip(rich.columns, shown):
+        assert list(rich_column._cells) == [column.render(row) for row in rows]
+    assert {"success_rate", "evaluations_to_target", "wall_time_median"} <= set(table.fields)
+
+
+def test_success_rate_and_evaluations_to_target_on_a_constructed_case(tmp_path: Path) -> None:
+    """Minimized, target 1: seed 1 reaches it at its 3rd evaluation, seed 2 at its 2nd, seed 3
+    never; so success 2/3 and a median of 2.5 evaluations over the successful seeds."""
+    fitnesses = {1: [5.0, 3.0, 0.5, 0.1], 2: [2.0, 0.9, 4.0, 7.0], 3: [4.0, 3.0, 2.0, 1.5]}
+    experiment = _flags_experiment(optimizers=["random"], seeds=3, budget=4, target=1.0)
+    (cell,) = experiment.cells()
+    with ExperimentStore(tmp_path / "made.db") as store:
+        for seed, values in fitnesses.items():
+            with store.joining(experiment.name, cell.key, seed):
+                run_id = store.create_run(
+                    optimizer="random", optimizer_params={}, problem="sphere",
+                    problem_params={"dim": 3}, seed=seed, budget=4, sense="minimize",
+                    space=[], settings=vars(RunSettings()), versions={},
+                )  # fmt: skip
+            for index, fitness in enumerate(values):
+                store.add_evaluation(run_id, index, index, np.zeros(3), fitness, {}, None, 0, 0.0)
+            store.finish_run(run_id, "finished", wall_time=float(seed))
+        (row,) = compare(experiment, store, registry()).rows
+        assert [d.action for d in _run(experiment, store)] == ["skipped"] * 3
+    assert row["success_rate"] == pytest.approx(2 / 3)
+    assert row["evaluations_to_target"] == 2.5
+    assert row["fitness_median"] == 0.9
+    assert row["wall_time_median"] == 2.0
+
+
+def test_reaching_the_target_follows_the_sense() -> None:
+    assert ProblemTraits(Sense.MINIMIZE, ()).reaches(0.5, 1.0)
+    assert not ProblemTraits(Sense.MINIMIZE, ()).reaches(1.5, 1.0)
+    assert ProblemTraits(Sense.MAXIMIZE, ()).reaches(1.0, 1.0)
+    assert not ProblemTraits(Sense.MAXIMIZE, ()).reaches(0.5, 1.0)
+
+
+def test_an_interrupted_cell_is_resumed_and_ends_like_an_uninterrupted_one(
+    tmp_path: Path,
+) -> None:
+    experiment = _flags_experiment(seeds=2, budget=200)
+
+    class StopSecondRun:
+        def __init__(self) -> None:
+            self.runs = 0
+
+        def start(self, total: int, done: int) -> None:
+            self.runs += 1
+
+        def update(self, done: int, best: float | None) -> None:
+            if self.runs == 2 and done == 120:
+                raise KeyboardInterrupt
+
+    stopper = StopSecondRun()
+    with ExperimentStore(tmp_path / "cut.db") as store:
+        with pytest.raises(RunInterrupted):
+            _run(experiment, store, lambda label: contextlib.nullcontext(stopper))
+        assert [r.status for r in store.runs()] == ["finished", "interrupted"]
+        actions = [(d.action, d.run_id) for d in _run(experiment, store)]
+        assert actions == [("skipped", 1), ("resumed", 2)]
+        assert [r.status for r in store.runs()] == ["finished", "finished"]
+        resumed = [(e.x.tobytes(), e.fitness) for e in store.evaluations(2)]
+    with ExperimentStore(tmp_path / "whole.db") as store:
+        _run(experiment, store)
+        assert [(e.x.tobytes(), e.fitness) for e in store.evaluations(2)] == resumed
+
+
+def test_an_edited_experiment_under_the_same_name_is_refused(tmp_path: Path) -> None:
+    with ExperimentStore(tmp_path / "e.db") as store:
+        _run(_flags_experiment(seeds=1, budget=50, name="same"), store)
+        with pytest.raises(ConfigError, match="budget 50 -> 60"):
+            _run(_flags_experiment(seeds=1, budget=60, name="same"), store)
+
+
+@pytest.mark.parametrize(
+    ("text", "message"),
+    [
+        ('problem = "sphere"\nseeds = 2\n[[optimizers]]\nname = "hss"\nbudget = 10\n',
+         "optimizer entry 1 ('hss'): unknown optimizer 'hss'. Did you mean 'hs'?"),
+        ('problem = "sphere"\nseeds = 2\n[[optimizers]]\nname = "hs"\n',
+         "optimizer entry 1 ('hs') has no 'budget'"),
+        ('problem = "sphere"\nseeds = [1, 2\n', "not valid TOML"),
+    ],
+    ids=["unknown optimizer", "missing budget", "bad TOML"],
+)  # fmt: skip
+def test_a_bad_experiment_file_is_one_clear_error(tmp_path: Path, text: str, message: str) -> None:
+    (tmp_path / "bad.toml").write_text(text)
+    done = metaopt_cli("compare", "bad.toml", cwd=tmp_path)
+    assert done.returncode == 2, done.stderr
+    assert "Traceback" not in done.stderr
+    assert "bad.toml: " in done.stderr and message in " ".join(done.stderr.split())
+    assert not (tmp_path / "metaopt.db").exists()
+
+
+def test_an_experiment_file_defines_the_grid(tmp_path: Path) -> None:
+    path = tmp_path / "grid.toml"
+    path.write_text(
+        'name = "grid"\nproblem = "rastrigin"\nseeds = [7, 8]\ntarget = 50\n'
+        "[problem_settings]\ndim = [2, 4]\n"
+        '[[optimizers]]\nlabel = "hs-classic"\nname = "hs"\nbudget = 40\n'
+        "params = { hmcr = 0.9 }\nsettings = { batch = 4 }\n"
+        '[[optimizers]]\nname = "ga"\nbudget = 60\nparams = { population = 10 }\n'
+    )
+    experiment = load_experiment(path, registry())
+    cells = experiment.cells()
+    assert [(c.optimizer.label, c.setting) for c in cells] == [
+        ("hs-classic", "dim=2"), ("ga", "dim=2"), ("hs-classic", "dim=4"), ("ga", "dim=4"),
+    ]  # fmt: skip
+    with ExperimentStore(tmp_path / "grid.db") as store:
+        _run(experiment, store)
+        runs = store.runs()
+        table = compare(experiment, store, registry())
+    assert len(runs) == 8 and {r.seed for r in runs} == {7, 8}
+    assert {(r.optimizer, r.budget, r.settings["batch"]) for r in runs} == {
+        ("hs", 40, 4), ("ga", 60, 0),
+    }  # fmt: skip
+    assert [row["setting"] for row in table.rows] == ["dim=2", "dim=2", "dim=4", "dim=4"]
+    assert sum(row.get("p_value") is None for row in table.rows) == 2  # one best per setting
+
+
+def _walk_experiment(tmp_path: Path) -> Experiment:
+    path = tmp_path / "walk.toml"
+    path.write_text(
+        'name = "walk"\nproblem = "nao-walk"\nseeds = [1, 2]\n'
+        '[problem_settings]\nbackend = "mujoco"\nduration = 3.0\nlock = 1.0\n'
+        '[[optimizers]]\nname = "hs"\nbudget = 8\n'
+    )
+    return load_experiment(path, registry())
+
+
+def test_transfer_table_values_equal_replays_on_the_other_engine(tmp_path: Path) -> None:
+    experiment = _walk_experiment(tmp_path)
+    with ExperimentStore(tmp_path / "walk.db") as store:
+        _run(experiment, store)
+        transfers = replay_on_other_engines(experiment, store, registry())
+        table: ResultTable = transfer_table(experiment, transfers, registry())
+        replays = [replay_best(store, run.id, registry(), {"backend": "pybullet"})
+                   for run in store.runs()]  # fmt: skip
+    (row,) = table.rows
+    assert (row["found_on"], row["replayed_on"], row["runs"]) == ("mujoco", "pybullet", 2)
+    assert [r.replayed.fitness for r in transfers[0].replays] == [
+        r.replayed.fitness for r in replays
+    ]
+    assert row["fitness_replayed"] == np.median([r.replayed.fitness for r in replays])
+    assert row["fitness_found"] == np.median([r.stored.fitness for r in replays])
+    assert row["distance_replayed"] == np.median([r.replayed.metrics["distance"] for r in replays])
+    assert row["fell_replayed"] == np.mean([r.replayed.metrics["fell"] for r in replays])
+    gaps = [r.stored.fitness - r.replayed.fitness for r in replays]
+    assert row["fitness_gap"] == pytest.approx(np.median(gaps), rel=1e-12)
+
+
+def test_transfer_needs_a_problem_with_engines(tmp_path: Path) -> None:
+    experiment = _flags_experiment(seeds=1, budget=10)
+    with ExperimentStore(tmp_path / "t.db") as store, pytest.raises(ConfigError, match="backend"):
+        replay_on_other_engines(experiment, store, registry())

@@ -1,0 +1,144 @@
+"""`metaopt report`: valid small PNGs whose plotted data is the stored (or re-simulated) data."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+from click.testing import CliRunner
+from matplotlib.image import imread
+
+from metaopt.cli_report import report
+from metaopt.convergence import convergence, group_runs
+from metaopt.plugins import registry
+from metaopt.report import comparison_figures, run_figures, write_figures
+from metaopt.run_loop import RunSpec, run
+from metaopt.store import RunStore
+from metaopt_problems.nao_walk.stored_gaits import gait_vector, load_gait
+from tests.walk_runs import store_walk_run
+
+
+@pytest.fixture(scope="module")
+def walk_db(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    db = tmp_path_factory.mktemp("walk") / "runs.db"
+    assert store_walk_run(db) == 1
+    return db
+
+
+def _sphere_runs(db: Path, setups: list[tuple[str, dict]], seeds: range) -> list[int]:
+    plugins = registry()
+    ids = []
+    with RunStore(db) as store:
+        for optimizer, params in setups:
+            for seed in seeds:
+                spec = RunSpec(optimizer, "sphere", 120, seed, optimizer_params=params)
+                result = run(spec, plugins.optimizer(optimizer), plugins.problem("sphere"), store)
+                ids.append(result.run_id)
+    return ids
+
+
+def _lines(figure, axes: int = 0) -> dict[str, np.ndarray]:
+    """Each labelled line's y data of one axes."""
+    return {line.get_label(): line.get_ydata() for line in figure.axes[axes].get_lines()}
+
+
+def test_best_so_far_and_trailing_mean_leave_failed_evaluations_out():
+    curves = convergence(np.array([3.0, np.nan, 1.0, 2.0, np.nan, np.nan]), False, window=2)
+    np.testing.assert_array_equal(curves.best, [3, 3, 1, 1, 1, 1])
+    np.testing.assert_array_equal(curves.mean, [3, 3, 1, 1.5, 2, np.nan])
+    assert curves.failed == 3
+    rising = convergence(np.array([np.nan, 1.0, 0.5, 4.0]), True)
+    np.testing.assert_array_equal(rising.best, [np.nan, 1, 1, 4])
+    assert rising.window == 1  # 5 % of 4 evaluations, at least 1
+
+
+def test_run_report_plots_the_stored_evaluations(walk_db):
+    with RunStore(walk_db) as store:
+        stored = [e.fitness for e in store.evaluations(1)]
+        figures = run_figures(store, 1, registry())
+    assert figures.note is None
+    assert list(figures.figures) == ["convergence", "joint_angles", "drift", "torso_height"]
+    lines = _lines(figures.figures["convergence"])
+    ok = [f for f in stored if f is not None]
+    assert stored[2] is None and len(ok) == 2
+    np.testing.assert_array_equal(lines["best so far"], [ok[0], max(ok), max(ok)])
+    # the window is 5 % of 3 evaluations, at least 1: the last one only, NaN where it failed
+    mean = lines["mean of the last 1 evaluations (failed excluded)"]
+    np.testing.assert_array_equal(mean, [ok[0], ok[1], np.nan])
+    assert "1 of 3 evaluations failed" in figures.figures["convergence"].axes[0].get_title()
+
+
+def test_walk_figures_are_the_resimulated_best_in_the_papers_convention(walk_db):
+    with RunStore(walk_db) as store:
+        figures = run_figures(store, 1, registry()).figures
+    problem = registry().problem("nao-walk").factory(duration=3.0, lock=1.0)
+    walk = problem.runner.run(problem.gait(gait_vector(load_gait())), record=True).trajectory
+    problem.close()
+    assert len(walk["time"]) == 100  # 2 s of walking at 50 Hz, no fall
+    np.testing.assert_array_equal(_lines(figures["drift"])["_child0"], walk["y"])
+    np.testing.assert_array_equal(_lines(figures["torso_height"])["_child0"], walk["z"])
+    angles = figures["joint_angles"]
+    for axes, (joint, sign) in enumerate((("lj3", -1), ("lj4", 1), ("lj5", -1))):
+        lines = _lines(angles, axes)
+        for side in ("left", "right"):
+            server = walk[f"{side[0]}{joint}_target"]
+            np.testing.assert_allclose(lines[f"{side} target (CPG)"], sign * np.degrees(server))
+            measured = walk[f"{side[0]}{joint}_angle"]
+            np.testing.assert_allclose(lines[f"{side} measured"], sign * np.degrees(measured))
+        assert angles.axes[axes].get_ylabel().endswith("(deg)")
+    assert angles.axes[-1].get_xlabel() == "time since walking began (s)"
+
+
+def test_report_command_writes_small_valid_pngs(walk_db, tmp_path):
+    out = tmp_path / "figures"
+    done = CliRunner().invoke(report, ["1", "--db", str(walk_db), "--out", str(out)])
+    assert done.exit_code == 0, done.output
+    sizes = {path.name: imread(path).shape[:2] for path in sorted(out.iterdir())}
+    assert sizes == {
+        "convergence.png": (420, 640),
+        "drift.png": (360, 640),
+        "joint_angles.png": (720, 640),
+        "torso_height.png": (360, 640),
+    }
+    assert all(path.stat().st_size < 150_000 for path in out.iterdir())
+    assert f"wrote {out / 'joint_angles.png'}" in done.output
+
+
+def test_a_problem_without_figures_gets_its_convergence_and_one_note(tmp_path):
+    db = tmp_path / "runs.db"
+    _sphere_runs(db, [("random", {})], range(1, 2))
+    done = CliRunner().invoke(report, ["1", "--db", str(db), "--out", str(tmp_path / "out")])
+    assert done.exit_code == 0, done.output
+    assert [p.name for p in (tmp_path / "out").iterdir()] == ["convergence.png"]
+    note = "Note: problem 'sphere': draws no figures of its own; only the convergence figure"
+    assert note in done.output
+    assert "Traceback" not in done.output
+
+
+def test_comparison_bands_are_median_and_quartiles_per_setup(tmp_path):
+    db = tmp_path / "runs.db"
+    ids = _sphere_runs(db, [("hs", {"hmcr": 0.9}), ("hs", {"hmcr": 0.5}), ("random", {})],
+                       range(1, 4))  # fmt: skip
+    with RunStore(db) as store:
+        figures = comparison_figures(store, [str(i) for i in ids], "setup")
+        best = {i: np.minimum.accumulate([e.fitness for e in store.evaluations(i)]) for i in ids}
+        by_name = group_runs([store.run(i) for i in ids], "optimizer")
+    lines = _lines(figures.figures["convergence_comparison"])
+    assert list(lines) == ["hs hmcr=0.9 (3 runs)", "hs hmcr=0.5 (3 runs)", "random (3 runs)"]
+    for label, members in zip(lines, (ids[:3], ids[3:6], ids[6:])):
+        np.testing.assert_allclose(lines[label], np.median([best[i] for i in members], axis=0))
+    bands = figures.figures["convergence_comparison"].axes[0].collections
+    assert len(bands) == 3
+    assert {k: len(v) for k, v in by_name.items()} == {"hs": 6, "random": 3}
+    paths = write_figures(figures, tmp_path / "out")
+    assert imread(paths[0]).shape[:2] == (420, 640)
+
+
+def test_runs_of_different_problems_do_not_compare(tmp_path):
+    db = tmp_path / "mixed.db"
+    store_walk_run(db)
+    _sphere_runs(db, [("random", {})], range(1, 2))
+    done = CliRunner().invoke(report, ["1", "2", "--db", str(db)])
+    assert done.exit_code != 0
+    assert "runs compare only on one problem; these are on nao-walk, sphere" in str(done.exception)
