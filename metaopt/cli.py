@@ -75,7 +75,7 @@ def list_plugins(name: str | None) -> None:
             info = table[name]
             console.print(f"[bold cyan]{info.name}[/] ({kind}): {info.summary}")
             if info.description:
-                console.print(info.description.strip())
+                console.print(display.reflow(info.description), markup=False)
             if kind == "problem":
                 console.print(f"default budget: {info.default_budget} evaluations")
             console.print(display.params_table("parameters", info.params))

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import inspect
 import math
 import time
 from collections.abc import Sequence
@@ -211,3 +212,19 @@ def run_detail(run: RunRecord, counts: tuple[int, int], best: EvaluationRecord |
             table.add_row(f"  {variable['name']}", format_number(float(value)))
     table.add_row("versions", ", ".join(f"{k} {v}" for k, v in run.versions.items()))
     return table
+
+
+def reflow(text: str) -> str:
+    """A docstring-style description with its hard line breaks joined, so the terminal wraps it
+    to its own width: paragraphs (blank-line separated) and list items ('- ', '* ') stay apart."""
+    paragraphs = []
+    for block in inspect.cleandoc(text).split("\n\n"):
+        lines: list[str] = []
+        for line in block.splitlines():
+            stripped = line.strip()
+            if lines and not stripped.startswith(("- ", "* ")):
+                lines[-1] += " " + stripped
+            else:
+                lines.append(stripped)
+        paragraphs.append("\n".join(lines))
+    return "\n\n".join(paragraphs)

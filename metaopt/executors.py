@@ -35,6 +35,9 @@ class EvaluationTask:
     factory: Callable[..., Problem]
     params: dict[str, Any]
     time_limit: float | None = None
+    #: problem_key(factory, params), when the sender has it already (saves a JSON encoding per
+    #: task); empty: computed where the task runs.
+    problem_key: str = ""
 
 
 @dataclass
@@ -87,7 +90,7 @@ def release_problems() -> None:
 
 def evaluate_task(task: EvaluationTask) -> Outcome:
     """Run one task in this process: a raised error or a non-finite fitness becomes a failure."""
-    key = problem_key(task.factory, task.params)
+    key = task.problem_key or problem_key(task.factory, task.params)
     start = time.perf_counter()
     try:
         problem = _problems.get(key)
@@ -111,7 +114,7 @@ class _alarm:
     """Raise EvaluationTimeout after ``seconds`` (main thread of a Unix process only)."""
 
     def __init__(self, seconds: float | None) -> None:
-        usable = hasattr(signal, "setitimer") and _in_main_thread()
+        usable = seconds and hasattr(signal, "setitimer") and _in_main_thread()
         self.seconds = seconds if usable else None
 
     def __enter__(self) -> None:

@@ -8,12 +8,17 @@ from __future__ import annotations
 
 from pathlib import Path
 
+import numpy as np
+from matplotlib.axes import Axes
 from matplotlib.figure import Figure
 
 from metaopt.convergence import Band, Convergence
 
 #: Resolution of saved figures, dots per inch (6.4 x 4.8 in -> 640 x 480 px).
 DPI = 100
+#: The zoomed views scale their y axis to the curves from this fraction of the evaluations on:
+#: the first, random candidates (robots that all fall, say) would flatten everything after.
+FOCUS_FROM = 0.05
 
 
 def fitness_label(maximize: bool) -> str:
@@ -22,13 +27,13 @@ def fitness_label(maximize: bool) -> str:
 
 
 def convergence_figure(curves: Convergence, title: str) -> Figure:
-    """Best so far and the trailing mean (failed evaluations excluded) against evaluations."""
-    figure = Figure(figsize=(6.4, 4.2), layout="constrained")
-    ax = figure.subplots()
+    """Best so far and the trailing mean (failed evaluations excluded) against evaluations;
+    below, the best so far alone, zoomed past the first random candidates."""
+    figure = Figure(figsize=(6.4, 6.4), layout="constrained")
+    ax, zoom = figure.subplots(2, 1, sharex=True, height_ratios=(3, 2))
     ax.plot(curves.evaluations, curves.mean, color="tab:gray", lw=0.9,
             label=f"mean of the last {curves.window} evaluations (failed excluded)")  # fmt: skip
     ax.plot(curves.evaluations, curves.best, color="tab:red", lw=1.6, label="best so far")
-    ax.set_xlabel("evaluations")
     ax.set_ylabel(fitness_label(curves.maximize))
     failed = (
         f"\n{curves.failed} of {len(curves.fitness)} evaluations failed" if curves.failed else ""
@@ -36,6 +41,11 @@ def convergence_figure(curves: Convergence, title: str) -> Figure:
     ax.set_title(f"{title}{failed}", fontsize="medium")
     ax.legend(fontsize="small")
     ax.grid(alpha=0.3)
+    zoom.plot(curves.evaluations, curves.best, color="tab:red", lw=1.6)
+    _focus(zoom, [curves.best])
+    zoom.set_xlabel("evaluations")
+    zoom.set_ylabel("best so far (zoomed)")
+    zoom.grid(alpha=0.3)
     return figure
 
 
@@ -48,12 +58,29 @@ def bands_figure(bands: dict[str, Band], maximize: bool, title: str) -> Figure:
                           label=f"{label} ({band.runs} runs)")  # fmt: skip
         ax.fill_between(band.evaluations, band.lower, band.upper, color=line.get_color(),
                         alpha=0.2, lw=0)  # fmt: skip
+    _focus(ax, [curve for band in bands.values() for curve in (band.lower, band.upper)])
     ax.set_xlabel("evaluations")
     ax.set_ylabel(f"best so far, {fitness_label(maximize)}")
-    ax.set_title(f"{title}\nmedian over runs, band: 25th to 75th percentile", fontsize="medium")
+    ax.set_title(
+        f"{title}\nmedian over runs, band: 25th to 75th percentile "
+        f"(y axis: from {FOCUS_FROM:.0%} of the run on)",
+        fontsize="medium",
+    )
     ax.legend(fontsize="small")
     ax.grid(alpha=0.3)
     return figure
+
+
+def _focus(ax: Axes, curves: list[np.ndarray]) -> None:
+    """Scale ax's y axis to the curves' finite values from FOCUS_FROM of their length on."""
+    tails = [curve[int(len(curve) * FOCUS_FROM) :] for curve in curves]
+    values = np.concatenate(tails) if tails else np.empty(0)
+    values = values[np.isfinite(values)]
+    if values.size == 0:
+        return
+    low, high = float(values.min()), float(values.max())
+    pad = 0.05 * (high - low) or 0.05 * max(abs(high), 1e-12)
+    ax.set_ylim(low - pad, high + pad)
 
 
 def save_figure(figure: Figure, path: Path) -> Path:

@@ -31,6 +31,7 @@ from metaopt.executors import (
     Outcome,
     SerialExecutor,
     adopt_problem,
+    problem_key,
 )
 from metaopt.optimizer import Optimizer, OptimizerInfo
 from metaopt.params import resolve
@@ -250,6 +251,7 @@ class _Session:
         self.store = store
         self.factory = problem_info.factory
         self.problem_params = problem_params
+        self.problem_key = problem_key(problem_info.factory, problem_params)
         self.sign = -1.0 if Sense(problem.sense) is Sense.MAXIMIZE else 1.0
         self.seeds = EvaluationSeeds(spec.seed)
         self.resample = self.settings.resample
@@ -392,7 +394,7 @@ class _Session:
                     continue
                 task = EvaluationTask(
                     index, candidate.x, self.seeds(index), self.factory, self.problem_params,
-                    self.settings.time_limit,
+                    self.settings.time_limit, self.problem_key,
                 )  # fmt: skip
                 futures[executor.submit(task)] = candidate
         return futures
@@ -405,8 +407,9 @@ class _Session:
                 self._record(candidate, future.result())
             else:
                 waiting.append(future)
-        for future in as_completed(waiting):
-            self._record(futures[future], future.result())
+        if waiting:  # as_completed costs a lock even with nothing to wait for
+            for future in as_completed(waiting):
+                self._record(futures[future], future.result())
 
     def _record(self, candidate: _Candidate, outcome: Outcome) -> None:
         candidate.outcomes[outcome.index % self.resample] = outcome

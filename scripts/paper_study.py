@@ -7,7 +7,8 @@ Three steps, each usable alone:
   each run serial inside (so a run depends only on its seed). Unfinished runs are resumed.
 * ``--export``: small result files from the store into docs/paper-reproduction/: runs.csv (one
   row per run), convergence/*.csv (best so far and block mean per 25 evaluations), transfer.csv
-  (each run's best replayed on the other engine).
+  (each run's best replayed on the other engine), gaits.csv, and figures/ (PNG figures and
+  MP4 videos drawn by `metaopt report`'s and `metaopt replay --video`'s code).
 * ``--report-only``: docs/paper-reproduction.md rebuilt from those files alone.
 
 With no option it does all three.
@@ -340,6 +341,52 @@ def export(db: Path, cells: list[Cell], out: Path = OUT, transfer: bool = True) 
     if transfer:
         _write_csv(out / "transfer.csv", TRANSFER_COLUMNS, transfers)
     print(f"exported {len(runs)} runs to {out}")
+
+
+# -- figures and video --------------------------------------------------------------------------
+
+FIGURES = OUT / "figures"
+#: The paper's two optimizers: the best run of each on each engine gets its own figures.
+FIGURE_LABELS = ("hs-paper", "ga")
+
+
+def export_figures(db: Path, cells: list[Cell], out: Path = FIGURES) -> None:
+    """PNG figures and MP4 videos drawn by metaopt's own report and video code from the store:
+    per engine, the best-so-far bands of every setting; for the best hs-paper and ga run per
+    engine, its convergence (Figs. 4-5) and its best gait (Figs. 6-10); and a video of the
+    study's best walk on each engine."""
+    from metaopt.convergence import best_so_far_band, run_convergence
+    from metaopt.plots import bands_figure, save_figure
+    from metaopt.plugins import registry
+    from metaopt.report import run_figures
+    from metaopt.store import RunStore
+    from metaopt.video import film_best
+
+    plugins = registry()
+    out.mkdir(parents=True, exist_ok=True)
+    with RunStore(db) as store:
+        for engine in ENGINES:
+            done = [(c, find_run(store, c)) for c in cells if c.engine == engine]
+            done = [(c, r) for c, r in done if is_done(store, r)]
+            if not done:
+                continue
+            bands = {
+                label: best_so_far_band([run_convergence(store, r) for c, r in done
+                                         if c.label == label])
+                for label in SETTINGS if any(c.label == label for c, _ in done)
+            }  # fmt: skip
+            title = f"nao-walk on {ENGINE_NAMES[engine]}: best fitness so far"
+            save_figure(bands_figure(bands, True, title), out / f"convergence-{engine}.png")
+            best_fitness = {c: store.best_evaluation(r).fitness for c, r in done}
+            for label in FIGURE_LABELS:
+                runs = [(c, r) for c, r in done if c.label == label]
+                if runs:
+                    cell, record = max(runs, key=lambda pair: best_fitness[pair[0]])
+                    for stem, figure in run_figures(store, record.id, plugins).figures.items():
+                        save_figure(figure, out / f"{cell.name}-{stem}.png")
+            cell, record = max(done, key=lambda pair: best_fitness[pair[0]])
+            film_best(store, record.id, plugins, {}, out / f"best-walk-{engine}-{cell.name}.mp4")
+    print(f"figures and videos in {out}")
 
 
 # -- what the best gaits do --------------------------------------------------------------------
@@ -902,22 +949,49 @@ def build_report(out: Path = OUT) -> str:
         "table_rhythmic": rhythmic_table(results),
         "table_runs": runs_table(results),
     }
-    figures = sorted(p.name for p in out.glob("*.png"))
-    tables["figures"] = (
-        "\n".join(f"![{name}](paper-reproduction/{name})" for name in figures)
-        if figures
-        else FIGURES_PLACEHOLDER
-    )
+    tables["figures"] = figures_section(out / "figures")
     return TEMPLATE.format_map(_Missing(**tables, **numbers(results)))
 
 
-FIGURES_PLACEHOLDER = """\
-Not made yet. `metaopt report` (being written) will draw them from the run store; the lead
-adds them here. Planned, in docs/paper-reproduction/: `convergence-hs.png` and
-`convergence-ga.png` (best and mean fitness per block of evaluations: the paper's Figs. 4 and
-5), `joints-hip.png`, `joints-knee.png`, `joints-ankle.png` (Figs. 6–8), `drift.png` (Fig. 9),
-`torso-height.png` (Fig. 10), for the best `hs-paper` and `ga` runs on MuJoCo, and a short
-video of the best walk."""
+#: What each kind of figure file shows: (file name suffix, caption after the run's name).
+FIGURE_CAPTIONS = (
+    ("-convergence.png", "best fitness so far and the trailing mean fitness against "
+                         "evaluations (the paper's Figs. 4 and 5)"),
+    ("-joint_angles.png", "hip, knee and ankle angles of the best gait, commanded and measured "
+                          "(Figs. 6-8)"),
+    ("-drift.png", "lateral drift Y of the torso during the best gait (Fig. 9)"),
+    ("-torso_height.png", "torso height during the best gait (Fig. 10)"),
+)  # fmt: skip
+
+
+def figures_section(folder: Path) -> str:
+    """The Figures section: every PNG and MP4 in folder, with what it shows."""
+    if not folder.is_dir():
+        return "No figures yet: `python scripts/paper_study.py --export` draws them."
+    link = f"paper-reproduction/{folder.name}"
+    parts = []
+    for engine in ENGINES:
+        name = f"convergence-{engine}.png"
+        if (folder / name).exists():
+            parts.append(
+                f"**Convergence on {ENGINE_NAMES[engine]}**: each setting's best fitness so "
+                "far, median over its seeds with the interquartile band (the y axis starts "
+                "after the first random candidates, which all fall).\n\n"
+                f"![{name}]({link}/{name})"
+            )
+    for png in sorted(folder.glob("*.png")):
+        for suffix, caption in FIGURE_CAPTIONS:
+            if png.name.endswith(suffix):
+                run = png.name[: -len(suffix)]
+                parts.append(f"**{run}**: {caption}.\n\n![{png.name}]({link}/{png.name})")
+    videos = [f"[{video.name}]({link}/{video.name})" for video in sorted(folder.glob("*.mp4"))]
+    if videos:
+        parts.append(
+            "Videos of the study's best walk on each engine (its best fitness over all runs on "
+            "that engine; 480x360, 25 frames per simulated second, `metaopt replay RUN "
+            f"--video`): {', '.join(videos)}."
+        )
+    return "\n\n".join(parts)
 
 
 def setup_table(results: Results) -> str:
@@ -959,7 +1033,7 @@ shifts the weight sideways) and in the simulator the paper used, not in the opti
 
 Everything on this page is generated from the small result files in docs/paper-reproduction/
 (`runs.csv`, `convergence/*.csv`, `transfer.csv`, `gaits.csv`, `swing-bounds.json`,
-`study.json`) by `scripts/paper_study.py`:
+`study.json`, and the figures and videos in `figures/`) by `scripts/paper_study.py`:
 
 ```bash
 python scripts/paper_study.py --run          # run (or resume) every unfinished run, 2 at a time
@@ -1203,6 +1277,7 @@ def main(argv: list[str] | None = None) -> int:
         export(args.db, grid(), transfer=not args.no_transfer)
         write_study_record(args.db, grid())
         export_gaits(args.db, grid())
+        export_figures(args.db, grid())
         bounds = json.dumps(swing_bounds(), indent=2)
         (OUT / "swing-bounds.json").write_text(bounds + "\n")
     if args.report_only or args.export or everything:

@@ -67,6 +67,10 @@ def test_run_report_plots_the_stored_evaluations(walk_db):
     mean = lines["mean of the last 1 evaluations (failed excluded)"]
     np.testing.assert_array_equal(mean, [ok[0], ok[1], np.nan])
     assert "1 of 3 evaluations failed" in figures.figures["convergence"].axes[0].get_title()
+    zoomed = figures.figures["convergence"].axes[1]
+    np.testing.assert_array_equal(zoomed.get_lines()[0].get_ydata(), lines["best so far"])
+    low, high = zoomed.get_ylim()
+    assert low < min(ok) and max(ok) < high and high - low < 1.2 * (max(ok) - min(ok))
 
 
 def test_walk_figures_are_the_resimulated_best_in_the_papers_convention(walk_db):
@@ -96,7 +100,7 @@ def test_report_command_writes_small_valid_pngs(walk_db, tmp_path):
     assert done.exit_code == 0, done.output
     sizes = {path.name: imread(path).shape[:2] for path in sorted(out.iterdir())}
     assert sizes == {
-        "convergence.png": (420, 640),
+        "convergence.png": (640, 640),
         "drift.png": (360, 640),
         "joint_angles.png": (720, 640),
         "torso_height.png": (360, 640),
