@@ -21,6 +21,7 @@ from metaopt_problems.nao_walk.episode import (
     EpisodeResult,
     EpisodeRunner,
     EpisodeSettings,
+    Sensors,
     SineGait,
     fitness,
 )
@@ -35,12 +36,12 @@ REPO = Path(__file__).resolve().parents[1]
 class SitDown(SineGait):
     """Throws both thighs forward: the robot falls on its back."""
 
-    def step(self, left_hip: float, right_hip: float) -> tuple[float, ...]:
+    def act(self, sensors: Sensors) -> tuple[float, ...]:
         return (1.5, 0.0, 0.0, 1.5, 0.0, 0.0)
 
 
 class Diverging(SineGait):
-    def step(self, left_hip: float, right_hip: float) -> tuple[float, ...]:
+    def act(self, sensors: Sensors) -> tuple[float, ...]:
         return (math.inf, 0.0, 0.0, 0.0, 0.0, 0.0)
 
 

@@ -14,10 +14,14 @@ from __future__ import annotations
 
 import math
 from collections.abc import Sequence
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from metaopt import ConfigError, Space, Variable
+
+if TYPE_CHECKING:
+    from .episode import Sensors
 
 PARAM_NAMES: tuple[str, ...] = (
     "tau1",
@@ -110,38 +114,23 @@ def paper_angles_deg(targets: Sequence[float]) -> tuple[float, float, float, flo
     return (-lhip, lknee, -lankle, -rhip, rknee, -rankle)
 
 
-class MatsuokaCpg:
-    """Matsuoka pair -> linear hip/knee neurons -> server joint targets, one 20 ms step at a time.
+class MatsuokaPair:
+    """Matsuoka's two mutually inhibiting neurons (eqs 1-4), advanced one control step at a time.
 
-    Element 1 drives the left leg, element 2 the right; both legs share w11, w12, b1, b2.
     Integration: each element's own (x, v) loop is linear between switches of its rectifier and
     is integrated exactly (precomputed matrix exponential); the mutual inhibition is coupled by
     a symmetric predictor-corrector (exponential Heun), so left and right are treated alike.
     Substeps are at most SUBSTEP_FRACTION * min(tau1, tau2).
     """
 
-    def __init__(
-        self,
-        params: Sequence[float],
-        hip_limits: tuple[float, float],
-        knee_limits: tuple[float, float],
-        ankle_limits: tuple[float, float],
-    ) -> None:
-        tau1, tau2, alpha, beta, gamma, c, w11, w12, b1, b2 = _checked(params)
+    def __init__(self, tau1: float, tau2: float, beta: float, gamma: float) -> None:
         for label, value in (("tau1", tau1), ("tau2", tau2)):
             if value < TAU_MIN:
                 raise ConfigError(
                     f"{label} = {value} control steps; time constants must be >= {TAU_MIN} "
                     "(the equations divide by them; faster rhythms cannot be commanded at 50 Hz)"
                 )
-        self._hip_limits = _checked_limits("hip", hip_limits)
-        self._knee_limits = _checked_limits("knee", knee_limits)
-        self._ankle_limits = _checked_limits("ankle", ankle_limits)
-        self._c, self._alpha, self._gamma, self._half_gamma = c, alpha, gamma, 0.5 * gamma
-        rad = math.pi / 180.0
-        # Server hip = -(paper hip), server knee = +(paper knee), both in radians.
-        self._hip_gain, self._hip_offset = -w11 * rad, -b1 * rad
-        self._knee_gain, self._knee_offset = w12 * rad, b2 * rad
+        self._gamma, self._half_gamma = gamma, 0.5 * gamma
         self._n_substeps = max(1, math.ceil(1.0 / (SUBSTEP_FRACTION * min(tau1, tau2))))
         h = 1.0 / self._n_substeps
         self._on = _element_propagator(tau1, tau2, beta, True, h)
@@ -150,31 +139,24 @@ class MatsuokaCpg:
 
     def reset(self) -> None:
         """Back to the initial state: x1 = INITIAL_X1, x2 = v1 = v2 = 0."""
-        self._x1, self._x2, self._v1, self._v2 = INITIAL_X1, 0.0, 0.0, 0.0
+        self.x1, self.x2, self.v1, self.v2 = INITIAL_X1, 0.0, 0.0, 0.0
 
     @property
     def outputs(self) -> tuple[float, float]:
-        """The elements' outputs y1 = [x1]+, y2 = [x2]+ (left, right) after the last step."""
-        return max(self._x1, 0.0), max(self._x2, 0.0)
+        """The elements' outputs y1 = [x1]+, y2 = [x2]+ after the last step."""
+        return max(self.x1, 0.0), max(self.x2, 0.0)
 
     @property
     def n_substeps(self) -> int:
         """Integration substeps per control step (1 for tau >= 4 steps, 8 at TAU_MIN)."""
         return self._n_substeps
 
-    def step(
-        self, left_hip: float, right_hip: float
-    ) -> tuple[float, float, float, float, float, float]:
-        """One control step; clipped targets (llj3, llj4, llj5, rlj3, rlj4, rlj5) in radians.
-
-        left_hip, right_hip: measured server hip pitch llj3, rlj3 (rad, finite). The feedback
-        term -alpha * u_f with u_f = -lj3 (paper convention) becomes +alpha * lj3.
-        """
-        drive1 = self._c + self._alpha * left_hip
-        drive2 = self._c + self._alpha * right_hip
+    def advance(self, drive1: float, drive2: float) -> tuple[float, float]:
+        """One control step with the elements' tonic drives (c plus feedback) held; returns the
+        outputs (y1, y2)."""
         gamma, half_gamma = self._gamma, self._half_gamma
         on, off = self._on, self._off
-        x1, x2, v1, v2 = self._x1, self._x2, self._v1, self._v2
+        x1, x2, v1, v2 = self.x1, self.x2, self.v1, self.v2
         for _ in range(self._n_substeps):
             y1 = x1 if x1 > 0.0 else 0.0
             y2 = x2 if x2 > 0.0 else 0.0
@@ -190,9 +172,65 @@ class MatsuokaCpg:
             x2, v2 = b11 * x2 + b12 * v2 + h1 * i2, b21 * x2 + b22 * v2 + h2 * i2
         if max(abs(x1), abs(x2), abs(v1), abs(v2)) > STATE_LIMIT:
             x1, x2, v1, v2 = (max(-STATE_LIMIT, min(STATE_LIMIT, s)) for s in (x1, x2, v1, v2))
-        self._x1, self._x2, self._v1, self._v2 = x1, x2, v1, v2
-        y1 = x1 if x1 > 0.0 else 0.0
-        y2 = x2 if x2 > 0.0 else 0.0
+        self.x1, self.x2, self.v1, self.v2 = x1, x2, v1, v2
+        return (x1 if x1 > 0.0 else 0.0), (x2 if x2 > 0.0 else 0.0)
+
+
+class MatsuokaCpg:
+    """The paper's controller: a MatsuokaPair -> linear hip/knee neurons -> server joint
+    targets, one 20 ms step at a time. Element 1 drives the left leg, element 2 the right; both
+    legs share w11, w12, b1, b2."""
+
+    #: The joints it drives, in the order step() returns their targets.
+    joints = ("llj3", "llj4", "llj5", "rlj3", "rlj4", "rlj5")
+
+    def __init__(
+        self,
+        params: Sequence[float],
+        hip_limits: tuple[float, float],
+        knee_limits: tuple[float, float],
+        ankle_limits: tuple[float, float],
+    ) -> None:
+        tau1, tau2, alpha, beta, gamma, c, w11, w12, b1, b2 = _checked(params)
+        self._pair = MatsuokaPair(tau1, tau2, beta, gamma)
+        self._hip_limits = _checked_limits("hip", hip_limits)
+        self._knee_limits = _checked_limits("knee", knee_limits)
+        self._ankle_limits = _checked_limits("ankle", ankle_limits)
+        self._c, self._alpha = c, alpha
+        rad = math.pi / 180.0
+        # Server hip = -(paper hip), server knee = +(paper knee), both in radians.
+        self._hip_gain, self._hip_offset = -w11 * rad, -b1 * rad
+        self._knee_gain, self._knee_offset = w12 * rad, b2 * rad
+
+    def reset(self) -> None:
+        """Back to the initial state: x1 = INITIAL_X1, x2 = v1 = v2 = 0."""
+        self._pair.reset()
+
+    @property
+    def outputs(self) -> tuple[float, float]:
+        """The elements' outputs y1 = [x1]+, y2 = [x2]+ (left, right) after the last step."""
+        return self._pair.outputs
+
+    @property
+    def n_substeps(self) -> int:
+        """Integration substeps per control step (1 for tau >= 4 steps, 8 at TAU_MIN)."""
+        return self._pair.n_substeps
+
+    def act(self, sensors: Sensors) -> tuple[float, float, float, float, float, float]:
+        """The Gait interface (episode.py): step() on the sensed hip angles."""
+        return self.step(sensors.left_hip, sensors.right_hip)
+
+    def step(
+        self, left_hip: float, right_hip: float
+    ) -> tuple[float, float, float, float, float, float]:
+        """One control step; clipped targets (llj3, llj4, llj5, rlj3, rlj4, rlj5) in radians.
+
+        left_hip, right_hip: measured server hip pitch llj3, rlj3 (rad, finite). The feedback
+        term -alpha * u_f with u_f = -lj3 (paper convention) becomes +alpha * lj3.
+        """
+        y1, y2 = self._pair.advance(
+            self._c + self._alpha * left_hip, self._c + self._alpha * right_hip
+        )
         return (*self._leg_targets(y1), *self._leg_targets(y2))
 
     def _leg_targets(self, y: float) -> tuple[float, float, float]:

@@ -19,9 +19,9 @@ import numpy as np
 from metaopt.errors import EvaluationError
 from metaopt.physics import PhysicsBackend
 
-#: The joints a gait drives, in the order Gait.step returns their targets.
+#: The joints the paper's gait drives (MatsuokaCpg.joints), in the order of its targets.
 DRIVEN_JOINTS = ("llj3", "llj4", "llj5", "rlj3", "rlj4", "rlj5")
-#: The joints whose measured angles feed back into the gait (left, right hip pitch).
+#: The joints whose measured angles feed back into a gait (left, right hip pitch).
 FEEDBACK_JOINTS = ("llj3", "rlj3")
 #: robust fitness: a fall costs this much progress, metres ...
 FALL_PENALTY = 1.0
@@ -31,14 +31,29 @@ FALL_PENALTY_RATE = 1.0
 FITNESS_KINDS = ("robust", "paper")
 
 
+@dataclass(slots=True)
+class Sensors:
+    """What a gait senses each control step (updated in place by the episode runner)."""
+
+    time: float = 0.0  #: seconds since walking began
+    left_hip: float = 0.0  #: measured llj3, rad (with the disturbance's sensor error)
+    right_hip: float = 0.0  #: measured rlj3, rad (with the disturbance's sensor error)
+    roll: float = 0.0  #: torso roll, rad: positive when its left side is up
+    pitch: float = 0.0  #: torso pitch, rad: positive when it leans forward
+
+
 class Gait(Protocol):
-    """A walking controller: six joint targets per control step from the two hip angles."""
+    """A walking controller: targets for its joints each control step from what it senses."""
+
+    #: The joints it drives, in the order act() returns their targets; every other joint is
+    #: held at its rest angle.
+    joints: tuple[str, ...]
 
     def reset(self) -> None:
         """Back to the controller's initial state."""
 
-    def step(self, left_hip: float, right_hip: float) -> Sequence[float]:
-        """Targets (radians) for DRIVEN_JOINTS from the measured llj3, rlj3 (radians)."""
+    def act(self, sensors: Sensors) -> Sequence[float]:
+        """Targets (radians) for ``joints`` at this control step."""
 
 
 class SineGait:
@@ -46,16 +61,16 @@ class SineGait:
     anti-phase about a slight flexion, knees bend on the forward swing, ankles keep the feet
     parallel to the torso (lj5 = -(lj3 + lj4))."""
 
+    joints = DRIVEN_JOINTS
+
     def __init__(self, period: float = 0.6, hip: float = 0.15, knee: float = 0.3) -> None:
         self.period, self.hip, self.knee = period, hip, knee
-        self.t = 0.0
 
     def reset(self) -> None:
-        self.t = 0.0
+        pass
 
-    def step(self, left_hip: float, right_hip: float) -> tuple[float, ...]:
-        self.t += 0.02
-        s = math.sin(2 * math.pi * self.t / self.period)
+    def act(self, sensors: Sensors) -> tuple[float, ...]:
+        s = math.sin(2 * math.pi * (sensors.time + 0.02) / self.period)
         lh, rh = 0.2 + self.hip * s, 0.2 - self.hip * s
         lk, rk = -0.3 - self.knee * max(0.0, s), -0.3 - self.knee * max(0.0, -s)
         return (lh, lk, -(lh + lk), rh, rk, -(rh + rk))
@@ -163,7 +178,7 @@ class EpisodeRunner:
         self._lock_steps = round(settings.lock / period)
         self._walk_steps = round((settings.duration - settings.lock) / period)
         self._period = period
-        self._driven = [robot.joint_index(name) for name in DRIVEN_JOINTS]
+        self._indices: dict[tuple[str, ...], list[int]] = {}
         self._feedback = [robot.joint_index(name) for name in FEEDBACK_JOINTS]
         self._rest = robot.rest_angles
         self._targets = self._rest.copy()
@@ -225,22 +240,25 @@ class EpisodeRunner:
         x0, y0, z = (float(v) for v in backend.root_position())
         height_min = height_max = z
         left, right = self._feedback
-        j0, j1, j2, j3, j4, j5 = self._driven
+        driven = self._joint_indices(gait.joints)
         fall_height, cos_tilt = self.settings.fall_height, self._cos_tilt
         rows: list[list[float]] = []
         fell, steps = False, 0
         errors = disturbance.sensor_errors if disturbance is not None else None
+        sensors = Sensors()
+        rotation = backend.root_rotation()
         while steps < self._walk_steps:
             angles = backend.joint_angles()
-            if errors is None:
-                out = gait.step(float(angles[left]), float(angles[right]))
-            else:
-                error_left, error_right = errors[steps]
-                out = gait.step(
-                    float(angles[left]) + error_left, float(angles[right]) + error_right
-                )
-            targets[j0], targets[j1], targets[j2] = out[0], out[1], out[2]
-            targets[j3], targets[j4], targets[j5] = out[3], out[4], out[5]
+            sensors.time = steps * self._period
+            sensors.left_hip, sensors.right_hip = float(angles[left]), float(angles[right])
+            if errors is not None:
+                sensors.left_hip += errors[steps][0]
+                sensors.right_hip += errors[steps][1]
+            sensors.roll = math.asin(max(-1.0, min(1.0, float(rotation[2, 1]))))
+            sensors.pitch = math.asin(max(-1.0, min(1.0, -float(rotation[2, 0]))))
+            out = gait.act(sensors)
+            for index, target in zip(driven, out):
+                targets[index] = target
             backend.step(targets)
             steps += 1
             if on_step is not None:
@@ -248,11 +266,12 @@ class EpisodeRunner:
             position = backend.root_position()
             z = float(position[2])
             height_min, height_max = min(height_min, z), max(height_max, z)
-            upright = float(backend.root_rotation()[2, 2])
+            rotation = backend.root_rotation()
+            upright = float(rotation[2, 2])
             if record:
                 angles = backend.joint_angles()
                 tilt = math.degrees(math.acos(max(-1.0, min(1.0, upright))))
-                rows.append([steps * self._period, *position, tilt, *out, *angles[self._driven]])
+                rows.append([steps * self._period, *position, tilt, *out, *angles[driven]])
             if z < fall_height or upright < cos_tilt:
                 fell = True
                 break
@@ -268,12 +287,19 @@ class EpisodeRunner:
             fall_time=self.settings.lock + time_walked if fell else self.settings.duration,
             height_min=height_min,
             height_max=height_max,
-            trajectory=_trajectory(rows) if record else None,
+            trajectory=_trajectory(rows, gait.joints) if record else None,
         )
 
+    def _joint_indices(self, joints: tuple[str, ...]) -> list[int]:
+        """The backend's indices of a gait's joints (cached per tuple of names)."""
+        indices = self._indices.get(joints)
+        if indices is None:
+            indices = self._indices[joints] = [self.backend.robot.joint_index(j) for j in joints]
+        return indices
 
-def _trajectory(rows: list[list[float]]) -> dict[str, np.ndarray]:
-    table = np.array(rows, dtype=float).reshape(-1, 5 + 2 * len(DRIVEN_JOINTS))
+
+def _trajectory(rows: list[list[float]], joints: tuple[str, ...]) -> dict[str, np.ndarray]:
+    table = np.array(rows, dtype=float).reshape(-1, 5 + 2 * len(joints))
     names = ["time", "x", "y", "z", "tilt"]
-    names += [f"{j}_target" for j in DRIVEN_JOINTS] + [f"{j}_angle" for j in DRIVEN_JOINTS]
+    names += [f"{j}_target" for j in joints] + [f"{j}_angle" for j in joints]
     return {name: table[:, i] for i, name in enumerate(names)}
