@@ -26,12 +26,18 @@ if TYPE_CHECKING:
 
 from .controller import MatsuokaCpg, cpg_space
 from .episode import FITNESS_KINDS, Disturbance, EpisodeRunner, EpisodeSettings, Gait, fitness
+from .extended import ExtendedCpg, extended_space
 from .robot import nao
 from .video import film
+
+#: The controllers nao-walk can tune: the paper's, and the extended one of extended.py.
+CONTROLLERS = ("paper", "extended")
 
 PARAMS = (
     Param("backend", str, "mujoco", "physics engine (an installed physics backend plugin), or "
           "several joined by '+' to score the worst of them"),
+    Param("controller", str, "paper", "paper (the paper's CPG and its 10 parameters) or "
+          "extended (sway, knee lift, torso feedback; docs/nao-walk.md)", choices=CONTROLLERS),
     Param("fitness", str, "robust", "robust (monotone, default) or paper (eq. 9 as printed)",
           choices=FITNESS_KINDS),
     Param("duration", float, 15.0, "simulated seconds per episode, lock phase included",
@@ -61,6 +67,7 @@ class NaoWalk(Problem):
     def __init__(
         self,
         backend: str = "mujoco",
+        controller: str = "paper",
         fitness: str = "robust",
         duration: float = 15.0,
         lock: float = 3.0,
@@ -79,17 +86,18 @@ class NaoWalk(Problem):
         self.backend_infos = {name: registry().physics_backend(name) for name in self.engines}
         if len(self.backend_infos) < len(self.engines):
             raise ConfigError(f"nao-walk: backend {backend!r} names an engine twice")
-        self.space = cpg_space()
+        if controller not in CONTROLLERS:
+            raise ConfigError(
+                f"nao-walk: unknown controller {controller!r}; accepted: {', '.join(CONTROLLERS)}"
+            )
+        self.controller = controller
+        self.space = cpg_space() if controller == "paper" else extended_space()
         self.fitness_kind = fitness
         self.physics = PhysicsSettings(substeps=substeps, servo_gain=servo_gain)
         self.episode = EpisodeSettings(duration, lock, fall_height, fall_tilt)
         self.noise = noise
         self.robot = nao()
-        limits = {}
-        for joint in ("llj3", "llj4", "llj5"):
-            hinge = self.robot.hinges[self.robot.joint_index(joint)]
-            limits[joint] = (hinge.lower, hinge.upper)
-        self._limits = limits
+        self._limits = {hinge.name: (hinge.lower, hinge.upper) for hinge in self.robot.hinges}
         self._runners: dict[str, EpisodeRunner] = {}
 
     @property
@@ -107,7 +115,9 @@ class NaoWalk(Problem):
         return runner
 
     def gait(self, x: np.ndarray) -> Gait:
-        """The CPG controller for decision vector x (space order)."""
+        """The controller for decision vector x (space order)."""
+        if self.controller == "extended":
+            return ExtendedCpg([float(v) for v in x], self._limits)
         return MatsuokaCpg(
             [float(v) for v in x],
             hip_limits=self._limits["llj3"],

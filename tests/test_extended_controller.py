@@ -1,0 +1,121 @@
+"""The extended CPG controller: its space, its rhythm, its joint targets and nao-walk's switch."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from metaopt import ConfigError
+from metaopt_problems.nao_walk.episode import Sensors
+from metaopt_problems.nao_walk.extended import (
+    PARAM_NAMES,
+    RAMP_S,
+    ExtendedCpg,
+    extended_space,
+)
+from metaopt_problems.nao_walk.plugin import NaoWalk
+from metaopt_problems.nao_walk.robot import nao
+
+LIMITS = {hinge.name: (hinge.lower, hinge.upper) for hinge in nao().hinges}
+STEP = 0.02
+
+
+def params(**given: float) -> list[float]:
+    """A mid-range parameter vector with some values replaced."""
+    space = extended_space()
+    middle = dict(zip(space.names, (space.lower + space.upper) / 2))
+    middle.update(sway_phase=0.0, pitch_gain=0.0, roll_gain=0.0, feedback=0.0)
+    middle.update(given)
+    return [middle[name] for name in PARAM_NAMES]
+
+
+def drive(controller: ExtendedCpg, steps: int, sensors: Sensors | None = None) -> np.ndarray:
+    """Targets of `steps` control steps, shape (steps, 10)."""
+    sensors = sensors or Sensors()
+    rows = []
+    for step in range(steps):
+        sensors.time = step * STEP
+        rows.append(controller.act(sensors))
+    return np.array(rows)
+
+
+def test_space_is_named_and_bounded():
+    space = extended_space()
+    assert space.names == PARAM_NAMES and len(PARAM_NAMES) == 11
+    assert np.all(space.lower < space.upper)
+    assert ExtendedCpg.joints == (
+        "llj2", "llj3", "llj4", "llj5", "llj6", "rlj2", "rlj3", "rlj4", "rlj5", "rlj6",
+    )  # fmt: skip
+
+
+@pytest.mark.parametrize("period", [0.3, 0.55, 0.8, 1.2])
+def test_every_candidate_oscillates_with_its_period_in_anti_phase(period):
+    targets = drive(ExtendedCpg(params(period=period, hip_bias=0.0), LIMITS), 1500)[500:]
+    left_hip, right_hip = targets[:, 1], targets[:, 6]
+    np.testing.assert_allclose(left_hip, -right_hip, atol=1e-12)  # anti-phase about bias 0
+    rising = np.flatnonzero((left_hip[:-1] < 0) & (left_hip[1:] >= 0))
+    measured = np.diff(rising).mean() * STEP
+    assert measured == pytest.approx(period, rel=0.05)  # whole control steps: 1 in 15 to 60
+    swing = math.radians(params()[PARAM_NAMES.index("hip_swing")])
+    assert left_hip.max() == pytest.approx(swing, rel=0.02)
+
+
+def test_targets_stay_in_the_joint_limits_and_keep_the_feet_flat_when_unclipped():
+    space = extended_space()
+    rng = np.random.default_rng(3)
+    for x in space.sample(rng, 40):
+        controller = ExtendedCpg(x, LIMITS)
+        sensors = Sensors(roll=rng.uniform(-0.5, 0.5), pitch=rng.uniform(-0.5, 0.5))
+        targets = drive(controller, 200, sensors)
+        for column, joint in enumerate(ExtendedCpg.joints):
+            lower, upper = LIMITS[joint]
+            assert np.all((lower <= targets[:, column]) & (targets[:, column] <= upper)), joint
+        values = dict(zip(PARAM_NAMES, x))
+        extra = math.radians(values["ankle_bias"]) + values["pitch_gain"] * sensors.pitch
+        for first in (0, 5):
+            roll, hip, knee, ankle, ankle_roll = targets[-1, first : first + 5]
+            ankle_lower, ankle_upper = LIMITS[ExtendedCpg.joints[first + 3]]
+            if ankle_lower < ankle < ankle_upper:  # not clipped: the sum is the offset
+                assert hip + knee + ankle == pytest.approx(extra, abs=1e-9)
+            roll_lower, roll_upper = LIMITS[ExtendedCpg.joints[first]]
+            if roll_lower < roll < roll_upper and roll_lower < -ankle_roll < roll_upper:
+                assert ankle_roll == pytest.approx(-roll, abs=1e-12)
+
+
+def test_the_gait_grows_from_standing_over_the_ramp():
+    x = params(hip_bias=20.0, knee_bias=40.0, sway=10.0)
+    targets = drive(ExtendedCpg(x, LIMITS), round(3 * RAMP_S / STEP))
+    ramp_steps = round(RAMP_S / STEP)
+    assert np.abs(targets[0]).max() < 2.5 * np.abs(targets[ramp_steps:]).max() / ramp_steps
+    assert targets[ramp_steps:, 1].mean() == pytest.approx(math.radians(20.0), rel=0.1)
+
+
+def test_deterministic_and_reset_restarts():
+    controller = ExtendedCpg(params(feedback=1.0), LIMITS)
+    sensors = Sensors(left_hip=0.1, right_hip=-0.05)
+    first = drive(controller, 100, sensors)
+    controller.reset()
+    np.testing.assert_array_equal(drive(controller, 100, sensors), first)
+
+
+def test_bad_parameters_are_config_errors():
+    with pytest.raises(ConfigError, match="takes 11 parameters"):
+        ExtendedCpg([1.0] * 10, LIMITS)
+    with pytest.raises(ConfigError, match="not finite: hip_swing"):
+        ExtendedCpg(params(hip_swing=math.nan), LIMITS)
+    with pytest.raises(ConfigError, match="unknown controller 'fast'; accepted: paper, extended"):
+        NaoWalk(controller="fast")
+
+
+def test_nao_walk_switches_controller_and_space():
+    paper, extended = NaoWalk(duration=4.0, lock=1.0), NaoWalk(controller="extended",
+                                                             duration=4.0, lock=1.0)  # fmt: skip
+    assert len(paper.space.names) == 10 and extended.space.names == PARAM_NAMES
+    x = np.array(params())
+    first = extended.evaluate(x, 0)
+    assert first == extended.evaluate(x, 0)
+    assert first.metrics["time_walked"] > 0
+    figures = extended.figures(x, 0)
+    assert set(figures) == {"joint_angles", "drift", "torso_height"}
