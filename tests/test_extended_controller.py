@@ -50,7 +50,7 @@ def test_space_is_named_and_bounded():
     )  # fmt: skip
 
 
-@pytest.mark.parametrize("period", [0.3, 0.55, 0.8, 1.2])
+@pytest.mark.parametrize("period", [0.2, 0.3, 0.55, 0.8, 1.2])
 def test_every_candidate_oscillates_with_its_period_in_anti_phase(period):
     targets = drive(ExtendedCpg(params(period=period, hip_bias=0.0), LIMITS), 1500)[500:]
     left_hip, right_hip = targets[:, 1], targets[:, 6]

@@ -249,13 +249,20 @@ class MatsuokaCpg:
 
 def _checked(params: Sequence[float]) -> tuple[float, ...]:
     """The 10 parameters as floats, or a ConfigError naming what is wrong."""
+    return checked_params(params, PARAM_NAMES, "the Matsuoka controller")
+
+
+def checked_params(
+    params: Sequence[float], names: Sequence[str], controller: str
+) -> tuple[float, ...]:
+    """A controller's parameters (``names``, in order) as floats, or a ConfigError naming what
+    is wrong."""
     values = tuple(float(p) for p in params)
-    if len(values) != len(PARAM_NAMES):
+    if len(values) != len(names):
         raise ConfigError(
-            f"the Matsuoka controller takes {len(PARAM_NAMES)} parameters "
-            f"({', '.join(PARAM_NAMES)}); got {len(values)}"
+            f"{controller} takes {len(names)} parameters ({', '.join(names)}); got {len(values)}"
         )
-    bad = [name for name, value in zip(PARAM_NAMES, values) if not math.isfinite(value)]
+    bad = [name for name, value in zip(names, values) if not math.isfinite(value)]
     if bad:
         raise ConfigError(
             f"controller parameters must be finite numbers; not finite: {', '.join(bad)}"

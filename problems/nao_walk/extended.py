@@ -34,7 +34,7 @@ import numpy as np
 
 from metaopt import ConfigError, Space, Variable
 
-from .controller import CONTROL_STEP_S, MatsuokaPair
+from .controller import CONTROL_STEP_S, MatsuokaPair, checked_params
 from .episode import Sensors
 
 #: The rhythm's fixed shape: tau2 = TAU_RATIO * tau1, adaptation BETA, inhibition GAMMA, c = 1.
@@ -45,12 +45,12 @@ RAMP_S = 1.0
 
 #: name, lower, upper, meaning (degrees where the name says an angle).
 _BOUNDS: tuple[tuple[str, float, float, str], ...] = (
-    ("period", 0.3, 1.2, "period of the free rhythm, s (hip feedback shifts it)"),
+    ("period", 0.2, 1.2, "period of the free rhythm, s (hip feedback shifts it)"),
     ("feedback", -2.0, 2.0, "measured hip pitch into the oscillator's drive, per radian"),
     ("hip_bias", -30.0, 30.0, "hip pitch offset, degrees (+: thighs forward)"),
-    ("hip_swing", 0.0, 35.0, "hip pitch amplitude, degrees (legs in anti-phase)"),
+    ("hip_swing", 0.0, 45.0, "hip pitch amplitude, degrees (legs in anti-phase)"),
     ("knee_bias", 0.0, 80.0, "knee flexion of both legs at all times, degrees"),
-    ("knee_lift", 0.0, 60.0, "extra knee flexion while a leg's element is active, degrees"),
+    ("knee_lift", 0.0, 80.0, "extra knee flexion while a leg's element is active, degrees"),
     ("ankle_bias", -20.0, 20.0, "ankle pitch from foot-parallel, degrees (+: toes up)"),
     ("sway", 0.0, 15.0, "hip and ankle roll amplitude, degrees (sideways weight shift)"),
     ("sway_phase", -180.0, 180.0, "phase of the sway against the hip swing, degrees"),
@@ -94,15 +94,7 @@ class ExtendedCpg:
     joints = LEFT + RIGHT
 
     def __init__(self, params: Sequence[float], limits: Mapping[str, tuple[float, float]]) -> None:
-        values = tuple(float(p) for p in params)
-        if len(values) != len(PARAM_NAMES):
-            raise ConfigError(
-                f"the extended controller takes {len(PARAM_NAMES)} parameters "
-                f"({', '.join(PARAM_NAMES)}); got {len(values)}"
-            )
-        bad = [name for name, value in zip(PARAM_NAMES, values) if not math.isfinite(value)]
-        if bad:
-            raise ConfigError(f"controller parameters must be finite; not finite: {', '.join(bad)}")
+        values = checked_params(params, PARAM_NAMES, "the extended controller")
         (period, self._feedback, hip_bias, hip_swing, knee_bias, knee_lift, ankle_bias, sway,
          sway_phase, self._pitch_gain, self._roll_gain) = values  # fmt: skip
         if period <= 0.0:
