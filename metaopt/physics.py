@@ -294,13 +294,15 @@ class BackendInfo:
     """How a plugin announces a physics engine: ``factory(robot, settings) -> PhysicsBackend``.
 
     ``default_substeps`` is the number of physics steps per control period the engine uses
-    when PhysicsSettings.substeps is 0.
+    when PhysicsSettings.substeps is 0; ``max_friction`` the largest ground friction
+    coefficient its contact model handles (problems refuse a larger one up front).
     """
 
     name: str
     summary: str
     factory: Callable[[RobotDescription, PhysicsSettings], PhysicsBackend]
     default_substeps: int = 10
+    max_friction: float = math.inf
 
 
 #: A robot problem's ``backend`` parameter may name several engines joined by this, to be

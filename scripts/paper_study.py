@@ -122,7 +122,8 @@ def is_done(store: Any, record: Any | None) -> bool:
 
 
 def find_run(store: Any, cell: Cell) -> Any | None:
-    """The stored run of this cell (the latest if several), or None."""
+    """The stored run of this cell (the latest if several), or None. A problem parameter the
+    run does not record was added later and ran at its default."""
     optimizer_params, problem_params = _resolved(cell)
     found = None
     for record in store.runs():
@@ -132,7 +133,7 @@ def find_run(store: Any, cell: Cell) -> Any | None:
             and record.seed == cell.seed
             and record.budget == cell.setting.budget
             and record.optimizer_params == optimizer_params
-            and record.problem_params == problem_params
+            and {**problem_params, **record.problem_params} == problem_params
             and record.settings.get("mode") == "sync"
             and record.settings.get("resample") == 1
         ):

@@ -14,6 +14,7 @@ import numpy as np
 import pytest
 
 from metaopt import ConfigError, EvaluationError, Sense
+from metaopt.params import resolve
 from metaopt.physics import PhysicsSettings
 from metaopt.plugins import registry
 from metaopt_problems.nao_walk.episode import (
@@ -149,6 +150,43 @@ def test_problem_evaluates_end_to_end_and_pickles() -> None:
     assert set(problem.key_metrics) <= set(first.metrics)
     copy = pickle.loads(pickle.dumps(problem))
     assert copy.evaluate(x, seed=1) == first
+    problem.close()
+
+
+@pytest.mark.parametrize("backend", BACKENDS)
+def test_friction_parameter_sets_the_ground_friction(backend: str) -> None:
+    """On ice (mu 0.05) the sine gait's feet slide: the walk differs from the default mu 1,
+    which `friction=1` reproduces exactly."""
+    info = registry().problem("nao-walk")
+    short = {"backend": backend, "duration": 4.0, "lock": 1.0}
+    space = info.factory().space
+    x = (space.lower + space.upper) / 2
+    metrics = {}
+    for friction in (None, 1.0, 0.05):
+        params = resolve(
+            info.params,
+            {**short, **({} if friction is None else {"friction": friction})},
+            "nao-walk",
+        )
+        problem = info.factory(**params)
+        assert problem.physics.friction == (friction or 1.0)
+        metrics[friction] = problem.evaluate(x, seed=1).metrics
+        problem.close()
+    assert metrics[None] == metrics[1.0]
+    assert metrics[0.05] != metrics[1.0]
+    with pytest.raises(ConfigError, match="friction"):
+        resolve(info.params, {"friction": 0.0}, "nao-walk")
+
+
+def test_a_friction_the_backend_cannot_stand_on_is_refused_up_front() -> None:
+    """MuJoCo's pyramidal cone cannot hold the NAO up at mu 4 or more: the problem says so when
+    it is made, naming the engine and its limit, instead of failing every evaluation."""
+    info = registry().problem("nao-walk")
+    with pytest.raises(ConfigError, match=r"friction 10.0 .*mujoco backend.*at most 3.0"):
+        info.factory(backend="pybullet+mujoco", friction=10.0)
+    problem = info.factory(backend="mujoco", friction=3.0, duration=2.0, lock=1.5)
+    x = (problem.space.lower + problem.space.upper) / 2
+    assert problem.evaluate(x, seed=1).metrics["time_walked"] > 0  # it stood through the lock
     problem.close()
 
 

@@ -45,6 +45,8 @@ PARAMS = (
     Param("lock", float, 3.0, "seconds the robot stands with the controller off", low=0.0),
     Param("substeps", int, 0, "physics steps per 20 ms control period; 0 = the engine's default",
           low=0, high=100),
+    Param("friction", float, 1.0, "ground friction coefficient (the paper's simulator: no "
+          "sliding limit; PyBullet takes 100, MuJoCo at most 3)", low=0.0, high=1000.0, low_open=True),
     Param("servo_gain", float, 10.0, "joint velocity command per radian of angle error, 1/s",
           low=0.0, low_open=True),
     Param("fall_height", float, 0.25, "fallen when the torso centre is lower than this, m",
@@ -72,6 +74,7 @@ class NaoWalk(Problem):
         duration: float = 15.0,
         lock: float = 3.0,
         substeps: int = 0,
+        friction: float = 1.0,
         servo_gain: float = 10.0,
         fall_height: float = 0.25,
         fall_tilt: float = 60.0,
@@ -86,6 +89,12 @@ class NaoWalk(Problem):
         self.backend_infos = {name: registry().physics_backend(name) for name in self.engines}
         if len(self.backend_infos) < len(self.engines):
             raise ConfigError(f"nao-walk: backend {backend!r} names an engine twice")
+        for name, info in self.backend_infos.items():
+            if friction > info.max_friction:
+                raise ConfigError(
+                    f"nao-walk: friction {friction} is more than the {name} backend handles "
+                    f"(at most {info.max_friction}); use a smaller one or another backend"
+                )
         if controller not in CONTROLLERS:
             raise ConfigError(
                 f"nao-walk: unknown controller {controller!r}; accepted: {', '.join(CONTROLLERS)}"
@@ -93,7 +102,7 @@ class NaoWalk(Problem):
         self.controller = controller
         self.space = cpg_space() if controller == "paper" else extended_space()
         self.fitness_kind = fitness
-        self.physics = PhysicsSettings(substeps=substeps, servo_gain=servo_gain)
+        self.physics = PhysicsSettings(substeps=substeps, servo_gain=servo_gain, friction=friction)
         self.episode = EpisodeSettings(duration, lock, fall_height, fall_tilt)
         self.noise = noise
         self.robot = nao()

@@ -7,7 +7,18 @@ from importlib.resources import files
 
 import numpy as np
 
-from .controller import PARAM_NAMES
+from . import controller, extended
+
+#: Each controller's parameter names, in decision-vector order.
+CONTROLLER_PARAMS = {"paper": controller.PARAM_NAMES, "extended": extended.PARAM_NAMES}
+
+
+def stored_gait_names() -> list[str]:
+    """The names of the stored gaits (gaits/NAME.json), sorted."""
+    folder = files("metaopt_problems.nao_walk") / "gaits"
+    return sorted(
+        p.name.removesuffix(".json") for p in folder.iterdir() if p.name.endswith(".json")
+    )
 
 
 def load_gait(name: str = "hs_walk") -> dict:
@@ -17,5 +28,6 @@ def load_gait(name: str = "hs_walk") -> dict:
 
 
 def gait_vector(record: dict) -> np.ndarray:
-    """A stored gait's decision vector in the CPG's parameter order."""
-    return np.array([record["parameters"][name] for name in PARAM_NAMES], dtype=float)
+    """A stored gait's decision vector in its controller's parameter order."""
+    names = CONTROLLER_PARAMS[record["problem_params"].get("controller", "paper")]
+    return np.array([record["parameters"][name] for name in names], dtype=float)

@@ -12,6 +12,9 @@ from metaopt.physics import BackendInfo, PhysicsBackend, PhysicsSettings, RobotD
 #: Physics steps per 20 ms control period by default (0.005 s steps): the fewest at which the
 #: NAO stands without jitter (docs/nao-walk.md).
 DEFAULT_SUBSTEPS = 4
+#: MuJoCo's default pyramidal friction cone softens a contact's normal direction as the
+#: friction coefficient grows: from mu = 4 the standing NAO sinks and falls (docs/nao-walk.md).
+MAX_FRICTION = 3.0
 
 
 def create(robot: RobotDescription, settings: PhysicsSettings) -> PhysicsBackend:
@@ -30,5 +33,6 @@ def metaopt_physics_backends() -> list[BackendInfo]:
             summary="MuJoCo: soft contacts, implicit-fast integrator, exact save/restore",
             factory=create,
             default_substeps=DEFAULT_SUBSTEPS,
+            max_friction=MAX_FRICTION,
         )
     ]
