@@ -46,7 +46,8 @@ PARAMS = (
     Param("substeps", int, 0, "physics steps per 20 ms control period; 0 = the engine's default",
           low=0, high=100),
     Param("friction", float, 1.0, "ground friction coefficient (the paper's simulator: no "
-          "sliding limit; PyBullet takes 100, MuJoCo at most 3)", low=0.0, high=1000.0, low_open=True),
+          "sliding limit; PyBullet takes 100, MuJoCo at most 3)", low=0.0, high=1000.0,
+          low_open=True),
     Param("servo_gain", float, 10.0, "joint velocity command per radian of angle error, 1/s",
           low=0.0, low_open=True),
     Param("fall_height", float, 0.25, "fallen when the torso centre is lower than this, m",
