@@ -20,33 +20,15 @@ import math
 import sys
 from pathlib import Path
 
-import numpy as np
+from metaopt_problems.nao_walk.stored_gaits import ENGINES, gait_metrics
 
 ROOT = Path(__file__).resolve().parent.parent
 GAITS = ROOT / "problems" / "nao_walk" / "gaits"
-ENGINES = ("mujoco", "pybullet")
 #: A claim sits this far below the measured distance (and the drift bound this far above the
 #: measured drift), so that a small, harmless change of an engine does not break the test
 #: while a gait that no longer walks does.
 DISTANCE_MARGIN = 0.9
 DRIFT_SLACK = 0.05
-
-
-def engine_metrics(problem_params: dict, x: np.ndarray, seed: int) -> dict[str, dict]:
-    """The gait's metrics on every engine, each from a fresh single-engine problem."""
-    from metaopt.params import resolve
-    from metaopt.plugins import registry
-
-    info = registry().problem("nao-walk")
-    found = {}
-    for engine in ENGINES:
-        params = resolve(info.params, {**problem_params, "backend": engine}, "nao-walk")
-        problem = info.factory(**params)
-        try:
-            found[engine] = dict(problem.evaluate(x, seed).metrics)
-        finally:
-            problem.close()
-    return found
 
 
 def claim(metrics: dict) -> dict:
@@ -72,7 +54,7 @@ def record(db: Path, run_id: int, command: str, description: str, claims: list[s
     info = registry().problem("nao-walk")
     problem_params = resolve(info.params, run.problem_params, "nao-walk")
     names = [variable["name"] for variable in run.space]
-    metrics = engine_metrics(problem_params, best.x, best.seed)
+    metrics = {e: gait_metrics(problem_params, best.x, best.seed, e) for e in ENGINES}
     for engine in claims:
         if metrics[engine]["fell"]:
             raise SystemExit(f"the gait falls on {engine}: nothing to claim")

@@ -19,25 +19,14 @@ import pytest
 from metaopt.params import resolve
 from metaopt.plugins import registry
 from metaopt_problems.nao_walk.stored_gaits import (
-    CONTROLLER_PARAMS,
-    gait_vector,
+    ENGINES,
+    controller_params,
     load_gait,
+    replay_gait,
     stored_gait_names,
 )
 
-ENGINES = ("mujoco", "pybullet")
 GAITS = stored_gait_names()
-
-
-def _evaluate(gait: dict, backend: str) -> dict[str, float]:
-    info = registry().problem("nao-walk")
-    params = resolve(info.params, {**gait["problem_params"], "backend": backend}, "nao-walk")
-    problem = info.factory(**params)
-    try:
-        seed = gait["found_by"].get("evaluation_seed", gait["found_by"]["seed"])
-        return dict(problem.evaluate(gait_vector(gait), seed=seed).metrics)
-    finally:
-        problem.close()
 
 
 def _assert_equal_record(
@@ -65,7 +54,7 @@ def test_stored_gait_is_complete(name: str) -> None:
     gait = load_gait(name)
     params = gait["problem_params"]
     assert params == resolve(registry().problem("nao-walk").params, params, "nao-walk")
-    assert list(gait["parameters"]) == list(CONTROLLER_PARAMS[params["controller"]])
+    assert list(gait["parameters"]) == list(controller_params(params["controller"]))
     found_by = gait["found_by"]
     assert found_by["command"].startswith("metaopt ")
     assert registry().optimizer(found_by["optimizer"])
@@ -81,7 +70,7 @@ def test_stored_gait_is_complete(name: str) -> None:
 @pytest.mark.parametrize("name", GAITS)
 def test_stored_gait_does_what_its_record_says(name: str, engine: str) -> None:
     gait = load_gait(name)
-    metrics = _evaluate(gait, engine)
+    metrics = replay_gait(gait, engine)
     claim = gait["claims"].get(engine)
     if claim is not None:
         assert metrics["fell"] == claim["fell"] == 0

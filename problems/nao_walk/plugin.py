@@ -30,8 +30,10 @@ from .extended import ExtendedCpg, extended_space
 from .robot import nao
 from .video import film
 
-#: The controllers nao-walk can tune: the paper's, and the extended one of extended.py.
-CONTROLLERS = ("paper", "extended")
+#: The controllers nao-walk can tune, with their decision spaces: the paper's, and the
+#: extended one of extended.py.
+CONTROLLER_SPACES = {"paper": cpg_space, "extended": extended_space}
+CONTROLLERS = tuple(CONTROLLER_SPACES)
 
 PARAMS = (
     Param("backend", str, "mujoco", "physics engine (an installed physics backend plugin), or "
@@ -101,7 +103,7 @@ class NaoWalk(Problem):
                 f"nao-walk: unknown controller {controller!r}; accepted: {', '.join(CONTROLLERS)}"
             )
         self.controller = controller
-        self.space = cpg_space() if controller == "paper" else extended_space()
+        self.space = CONTROLLER_SPACES[controller]()
         self.fitness_kind = fitness
         self.physics = PhysicsSettings(substeps=substeps, servo_gain=servo_gain, friction=friction)
         self.episode = EpisodeSettings(duration, lock, fall_height, fall_tilt)

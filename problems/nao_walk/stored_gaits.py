@@ -7,10 +7,15 @@ from importlib.resources import files
 
 import numpy as np
 
-from . import controller, extended
+from .plugin import CONTROLLER_SPACES
 
-#: Each controller's parameter names, in decision-vector order.
-CONTROLLER_PARAMS = {"paper": controller.PARAM_NAMES, "extended": extended.PARAM_NAMES}
+#: The engines a record's metrics cover.
+ENGINES = ("mujoco", "pybullet")
+
+
+def controller_params(controller: str) -> tuple[str, ...]:
+    """A controller's parameter names, in decision-vector order."""
+    return tuple(CONTROLLER_SPACES[controller]().names)
 
 
 def stored_gait_names() -> list[str]:
@@ -29,5 +34,28 @@ def load_gait(name: str = "hs_walk") -> dict:
 
 def gait_vector(record: dict) -> np.ndarray:
     """A stored gait's decision vector in its controller's parameter order."""
-    names = CONTROLLER_PARAMS[record["problem_params"].get("controller", "paper")]
+    names = controller_params(record["problem_params"].get("controller", "paper"))
     return np.array([record["parameters"][name] for name in names], dtype=float)
+
+
+def gait_metrics(problem_params: dict, x: np.ndarray, seed: int, engine: str) -> dict:
+    """Decision vector x's episode metrics on one engine, from a fresh nao-walk problem made
+    with problem_params (backend replaced by engine)."""
+    from metaopt.params import resolve
+    from metaopt.plugins import registry
+
+    info = registry().problem("nao-walk")
+    params = resolve(info.params, {**problem_params, "backend": engine}, "nao-walk")
+    problem = info.factory(**params)
+    try:
+        return dict(problem.evaluate(x, seed).metrics)
+    finally:
+        problem.close()
+
+
+def replay_gait(record: dict, engine: str) -> dict:
+    """A stored gait's metrics on engine, re-run as it was found (its evaluation's seed; older
+    records name only the run's seed)."""
+    found_by = record["found_by"]
+    seed = found_by.get("evaluation_seed", found_by["seed"])
+    return gait_metrics(record["problem_params"], gait_vector(record), seed, engine)
