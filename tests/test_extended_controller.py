@@ -1,4 +1,5 @@
-"""The extended CPG controller: its space, its rhythm, its joint targets and nao-walk's switch."""
+"""The extended and stride CPG controllers: their spaces, rhythm, joint targets and nao-walk's
+switch."""
 
 from __future__ import annotations
 
@@ -12,8 +13,11 @@ from metaopt_problems.nao_walk.episode import Sensors
 from metaopt_problems.nao_walk.extended import (
     PARAM_NAMES,
     RAMP_S,
+    STRIDE_PARAM_NAMES,
     ExtendedCpg,
+    StrideCpg,
     extended_space,
+    stride_space,
 )
 from metaopt_problems.nao_walk.plugin import NaoWalk
 from metaopt_problems.nao_walk.robot import nao
@@ -22,13 +26,16 @@ LIMITS = {hinge.name: (hinge.lower, hinge.upper) for hinge in nao().hinges}
 STEP = 0.02
 
 
-def params(**given: float) -> list[float]:
-    """A mid-range parameter vector with some values replaced."""
-    space = extended_space()
+def params(controller: type[ExtendedCpg] = ExtendedCpg, **given: float) -> list[float]:
+    """A mid-range parameter vector of `controller` with some values replaced."""
+    space = SPACES[controller]()
     middle = dict(zip(space.names, (space.lower + space.upper) / 2))
     middle.update(sway_phase=0.0, pitch_gain=0.0, roll_gain=0.0, feedback=0.0)
     middle.update(given)
-    return [middle[name] for name in PARAM_NAMES]
+    return [middle[name] for name in controller.param_names]
+
+
+SPACES = {ExtendedCpg: extended_space, StrideCpg: stride_space}
 
 
 def drive(controller: ExtendedCpg, steps: int, sensors: Sensors | None = None) -> np.ndarray:
@@ -62,7 +69,28 @@ def test_every_candidate_oscillates_with_its_period_in_anti_phase(period):
     assert left_hip.max() == pytest.approx(swing, rel=0.02)
 
 
-def test_targets_stay_in_the_joint_limits_and_keep_the_feet_flat_when_unclipped():
+def test_stride_space_adds_knee_phase_and_push_off_to_the_extended_one():
+    space = stride_space()
+    assert space.names == STRIDE_PARAM_NAMES == (*PARAM_NAMES, "knee_phase", "push", "push_phase")
+    assert np.all(space.lower < space.upper)
+    extended = extended_space()
+    wider = np.array([2.0 if name == "feedback" else 1.0 for name in PARAM_NAMES])
+    np.testing.assert_array_equal(space.lower[: len(PARAM_NAMES)], wider * extended.lower)
+    np.testing.assert_array_equal(space.upper[: len(PARAM_NAMES)], wider * extended.upper)
+
+
+@pytest.mark.parametrize("controller", [ExtendedCpg, StrideCpg])
+def test_targets_stay_in_the_joint_limits(controller):
+    rng = np.random.default_rng(3)
+    for x in SPACES[controller]().sample(rng, 40):
+        sensors = Sensors(roll=rng.uniform(-0.5, 0.5), pitch=rng.uniform(-0.5, 0.5))
+        targets = drive(controller(x, LIMITS), 200, sensors)
+        for column, joint in enumerate(controller.joints):
+            lower, upper = LIMITS[joint]
+            assert np.all((lower <= targets[:, column]) & (targets[:, column] <= upper)), joint
+
+
+def test_extended_keeps_the_feet_flat_when_unclipped():
     space = extended_space()
     rng = np.random.default_rng(3)
     for x in space.sample(rng, 40):
@@ -105,7 +133,10 @@ def test_bad_parameters_are_config_errors():
         ExtendedCpg([1.0] * 10, LIMITS)
     with pytest.raises(ConfigError, match="not finite: hip_swing"):
         ExtendedCpg(params(hip_swing=math.nan), LIMITS)
-    with pytest.raises(ConfigError, match="unknown controller 'fast'; accepted: paper, extended"):
+    with pytest.raises(ConfigError, match="stride controller takes 14 parameters"):
+        StrideCpg(params(), LIMITS)
+    with pytest.raises(ConfigError, match="unknown controller 'fast'; accepted: paper, extended, "
+                       "stride"):  # fmt: skip
         NaoWalk(controller="fast")
 
 
@@ -113,9 +144,39 @@ def test_nao_walk_switches_controller_and_space():
     paper, extended = NaoWalk(duration=4.0, lock=1.0), NaoWalk(controller="extended",
                                                              duration=4.0, lock=1.0)  # fmt: skip
     assert len(paper.space.names) == 10 and extended.space.names == PARAM_NAMES
+    stride = NaoWalk(controller="stride", duration=4.0, lock=1.0)
+    assert stride.space.names == STRIDE_PARAM_NAMES
+    assert stride.evaluate(np.array(params(StrideCpg)), 0).metrics["time_walked"] > 0
     x = np.array(params())
     first = extended.evaluate(x, 0)
     assert first == extended.evaluate(x, 0)
     assert first.metrics["time_walked"] > 0
     figures = extended.figures(x, 0)
     assert set(figures) == {"joint_angles", "drift", "torso_height"}
+
+
+@pytest.mark.parametrize("knee_phase", [0.0, 180.0])
+def test_stride_lifts_the_knee_at_its_phase_and_pushes_off_behind(knee_phase):
+    x = params(StrideCpg, hip_bias=0.0, hip_swing=20.0, knee_bias=20.0, knee_lift=30.0,
+               ankle_bias=0.0, knee_phase=knee_phase, push=15.0, push_phase=0.0)  # fmt: skip
+    targets = drive(StrideCpg(x, LIMITS), 400)[round(RAMP_S / STEP) :]
+    for first in (0, 5):
+        hip, knee, ankle = targets[:, first + 1], targets[:, first + 2], targets[:, first + 3]
+        s = hip / math.radians(20.0)  # this leg's swing signal, in [-1, 1]
+        forward = s if knee_phase == 0.0 else -s
+        lift = math.radians(20.0) + math.radians(30.0) * np.maximum(0.0, forward)
+        np.testing.assert_allclose(knee, -lift, atol=1e-12)
+        lower, upper = LIMITS[StrideCpg.joints[first + 3]]
+        free = (lower < ankle) & (ankle < upper)
+        assert free.mean() > 0.5
+        # from foot-parallel, the ankle follows push x s: toes down (-) while the leg is behind
+        np.testing.assert_allclose((hip + knee + ankle)[free], math.radians(15.0) * s[free],
+                                   atol=1e-12)  # fmt: skip
+        assert np.any(s[free] < -0.5) and np.any(s[free] > 0.5)
+
+
+def test_stride_without_knee_lift_and_push_is_the_extended_controller():
+    sensors = Sensors(left_hip=0.1, right_hip=-0.05, roll=0.1, pitch=-0.1)
+    stride = StrideCpg(params(StrideCpg, knee_lift=0.0, push=0.0, feedback=1.0), LIMITS)
+    extended = ExtendedCpg(params(knee_lift=0.0, feedback=1.0), LIMITS)
+    np.testing.assert_array_equal(drive(stride, 300, sensors), drive(extended, 300, sensors))

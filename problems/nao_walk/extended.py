@@ -59,13 +59,33 @@ _BOUNDS: tuple[tuple[str, float, float, str], ...] = (
 )
 PARAM_NAMES: tuple[str, ...] = tuple(name for name, *_ in _BOUNDS)
 
+#: The stride controller's: the extended one's, the hip feedback twice as wide (the extended
+#: searches ended on its bound), and a free knee phase and an ankle push-off.
+_STRIDE_BOUNDS: tuple[tuple[str, float, float, str], ...] = (
+    *((name, -4.0, 4.0, meaning) if name == "feedback" else (name, lo, hi, meaning)
+      for name, lo, hi, meaning in _BOUNDS),
+    ("knee_phase", -180.0, 180.0, "phase of the knee lift against the leg's hip swing, degrees"),
+    ("push", -30.0, 30.0, "ankle pitch swing, degrees (+: toes down while the leg is behind)"),
+    ("push_phase", -180.0, 180.0, "phase of the ankle swing against the hip swing, degrees"),
+)  # fmt: skip
+STRIDE_PARAM_NAMES: tuple[str, ...] = tuple(name for name, *_ in _STRIDE_BOUNDS)
+
 LEFT = ("llj2", "llj3", "llj4", "llj5", "llj6")
 RIGHT = ("rlj2", "rlj3", "rlj4", "rlj5", "rlj6")
 
 
+def _space(bounds: tuple[tuple[str, float, float, str], ...]) -> Space:
+    return Space([Variable(name, lo, hi, meaning) for name, lo, hi, meaning in bounds])
+
+
 def extended_space() -> Space:
     """The extended controller's decision variables, named and bounded."""
-    return Space([Variable(name, lo, hi, meaning) for name, lo, hi, meaning in _BOUNDS])
+    return _space(_BOUNDS)
+
+
+def stride_space() -> Space:
+    """The stride controller's decision variables, named and bounded."""
+    return _space(_STRIDE_BOUNDS)
 
 
 @functools.cache
@@ -86,32 +106,45 @@ def free_rhythm() -> tuple[float, float, float, float]:
     return period, float(max(y1.max(), y2.max())), float(np.abs(s).max()), float(np.abs(v).max())
 
 
+def _phased(amplitude_rad: float, phase_deg: float) -> tuple[float, float]:
+    """(weight of s, weight of q) of amplitude * (cos(phase) s + sin(phase) q)."""
+    phase = math.radians(phase_deg)
+    return amplitude_rad * math.cos(phase), amplitude_rad * math.sin(phase)
+
+
 class ExtendedCpg:
     """The extended controller (module docstring): ten leg joints from one Matsuoka rhythm and
     the torso's roll and pitch."""
 
     #: The joints it drives, in the order act() returns their targets.
     joints = LEFT + RIGHT
+    #: Its parameters, in order, and its name in messages.
+    param_names = PARAM_NAMES
+    label = "the extended controller"
 
     def __init__(self, params: Sequence[float], limits: Mapping[str, tuple[float, float]]) -> None:
-        values = checked_params(params, PARAM_NAMES, "the extended controller")
-        (period, self._feedback, hip_bias, hip_swing, knee_bias, knee_lift, ankle_bias, sway,
-         sway_phase, self._pitch_gain, self._roll_gain) = values  # fmt: skip
+        values = dict(zip(self.param_names, checked_params(params, self.param_names, self.label)))
+        period = values["period"]
         if period <= 0.0:
             raise ConfigError(f"period must be positive seconds, got {period}")
         steps_per_tau, self._y_peak, self._y_swing, self._v_swing = free_rhythm()
         tau1 = period / CONTROL_STEP_S / steps_per_tau
         self._pair = MatsuokaPair(tau1, TAU_RATIO * tau1, BETA, GAMMA)
+        self._feedback = values["feedback"]
+        self._pitch_gain, self._roll_gain = values["pitch_gain"], values["roll_gain"]
         rad = math.pi / 180.0
-        self._hip_bias, self._hip_swing = hip_bias * rad, hip_swing * rad
-        self._knee_bias, self._knee_lift = knee_bias * rad, knee_lift * rad
-        self._ankle_bias = ankle_bias * rad
-        phase = sway_phase * rad
-        self._sway_s, self._sway_q = sway * rad * math.cos(phase), sway * rad * math.sin(phase)
+        self._hip_bias, self._hip_swing = values["hip_bias"] * rad, values["hip_swing"] * rad
+        self._knee_bias, self._knee_lift = values["knee_bias"] * rad, values["knee_lift"] * rad
+        self._ankle_bias = values["ankle_bias"] * rad
+        self._sway_s, self._sway_q = _phased(values["sway"] * rad, values["sway_phase"])
+        self._configure(values)
         missing = [joint for joint in self.joints if joint not in limits]
         if missing:
             raise ConfigError(f"no limits given for {', '.join(missing)}")
         self._limits = [tuple(float(v) for v in limits[joint]) for joint in self.joints]
+
+    def _configure(self, values: Mapping[str, float]) -> None:
+        """Read the parameters a subclass adds (none here)."""
 
     @property
     def pair(self) -> MatsuokaPair:
@@ -132,32 +165,54 @@ class ExtendedCpg:
         ramp = min(1.0, (sensors.time + CONTROL_STEP_S) / RAMP_S)
         s = (y1 - y2) / self._y_swing
         q = (pair.v1 - pair.v2) / self._v_swing
-        swing = self._hip_swing * s
         roll = ramp * (self._sway_s * s + self._sway_q * q) + self._roll_gain * sensors.roll
         ankle = ramp * self._ankle_bias + self._pitch_gain * sensors.pitch
-        lift = self._knee_lift / self._y_peak
         return (
-            *self._leg(ramp * (self._hip_bias + swing),
-                       -ramp * (self._knee_bias + lift * y1), ankle, roll, 0),
-            *self._leg(ramp * (self._hip_bias - swing),
-                       -ramp * (self._knee_bias + lift * y2), ankle, roll, 5),
-        )  # fmt: skip
+            *self._leg(ramp, s, q, y1, ankle, roll, 0),
+            *self._leg(ramp, -s, -q, y2, ankle, roll, 5),
+        )
+
+    def _knee_and_ankle(self, s: float, q: float, y: float) -> tuple[float, float]:
+        """A leg's rhythmic (knee flexion, ankle pitch), radians, from its own signals (s and
+        q signed for this leg, y its element's output): the knee lifts while its element is
+        active, the ankle has no rhythm of its own."""
+        return self._knee_lift / self._y_peak * y, 0.0
 
     def _leg(
-        self, hip: float, knee: float, ankle: float, roll: float, first: int
+        self, ramp: float, s: float, q: float, y: float, ankle: float, roll: float, first: int
     ) -> tuple[float, float, float, float, float]:
         """One leg's clipped (hip roll, hip, knee, ankle, ankle roll); the ankle pitch keeps
-        the foot parallel to the torso (from the clipped hip and knee) plus ``ankle``."""
+        the foot parallel to the torso (from the clipped hip and knee) plus ``ankle`` and the
+        leg's ankle rhythm."""
         limits = self._limits
-        hip = _clip(hip, limits[first + 1])
-        knee = _clip(knee, limits[first + 2])
+        lift, ankle_swing = self._knee_and_ankle(s, q, y)
+        hip = _clip(ramp * (self._hip_bias + self._hip_swing * s), limits[first + 1])
+        knee = _clip(-ramp * (self._knee_bias + lift), limits[first + 2])
         return (
             _clip(roll, limits[first]),
             hip,
             knee,
-            _clip(ankle - (hip + knee), limits[first + 3]),
+            _clip(ankle + ramp * ankle_swing - (hip + knee), limits[first + 3]),
             _clip(-roll, limits[first + 4]),
         )
+
+
+class StrideCpg(ExtendedCpg):
+    """The stride controller: the extended one with the knee lift at a free phase of the leg's
+    swing and an ankle swing (a push-off) at another."""
+
+    param_names = STRIDE_PARAM_NAMES
+    label = "the stride controller"
+
+    def _configure(self, values: Mapping[str, float]) -> None:
+        self._knee_s, self._knee_q = _phased(1.0, values["knee_phase"])
+        self._push_s, self._push_q = _phased(math.radians(values["push"]), values["push_phase"])
+
+    def _knee_and_ankle(self, s: float, q: float, y: float) -> tuple[float, float]:
+        """The knee lifts by knee_lift x max(0, cos(knee_phase) s + sin(knee_phase) q); the
+        ankle swings by push x (cos(push_phase) s + sin(push_phase) q)."""
+        lift = self._knee_lift * max(0.0, self._knee_s * s + self._knee_q * q)
+        return lift, self._push_s * s + self._push_q * q
 
 
 def _clip(value: float, limits: tuple[float, float]) -> float:

@@ -1,6 +1,7 @@
 """The `nao-walk` problem: tune the paper's Matsuoka CPG so the simulated NAO walks.
 
-The decision vector is the CPG's 10 parameters (controller.cpg_space); evaluate runs one
+The decision vector is the controller's parameters (the paper's CPG by default: 10,
+controller.cpg_space; extended.py's controllers with ``controller``); evaluate runs one
 15 s episode (episode.py) on the chosen physics backend and returns the fitness and metrics.
 With several backends joined by '+' (``mujoco+pybullet``) it runs the episode on each: the
 fitness and the plain metrics are the worst engine's, and every engine's metrics are added as
@@ -26,20 +27,21 @@ if TYPE_CHECKING:
 
 from .controller import MatsuokaCpg, cpg_space
 from .episode import FITNESS_KINDS, Disturbance, EpisodeRunner, EpisodeSettings, Gait, fitness
-from .extended import ExtendedCpg, extended_space
+from .extended import ExtendedCpg, StrideCpg, extended_space, stride_space
 from .robot import nao
 from .video import film
 
 #: The controllers nao-walk can tune, with their decision spaces: the paper's, and the
-#: extended one of extended.py.
-CONTROLLER_SPACES = {"paper": cpg_space, "extended": extended_space}
+#: extended and stride ones of extended.py.
+CONTROLLER_SPACES = {"paper": cpg_space, "extended": extended_space, "stride": stride_space}
 CONTROLLERS = tuple(CONTROLLER_SPACES)
 
 PARAMS = (
     Param("backend", str, "mujoco", "physics engine (an installed physics backend plugin), or "
           "several joined by '+' to score the worst of them"),
-    Param("controller", str, "paper", "paper (the paper's CPG and its 10 parameters) or "
-          "extended (sway, knee lift, torso feedback; docs/nao-walk.md)", choices=CONTROLLERS),
+    Param("controller", str, "paper", "paper (the paper's CPG and its 10 parameters), "
+          "extended (sway, knee lift, torso feedback; docs/nao-walk.md) or stride (extended, "
+          "with a knee phase and an ankle push-off)", choices=CONTROLLERS),
     Param("fitness", str, "robust", "robust (monotone, default) or paper (eq. 9 as printed)",
           choices=FITNESS_KINDS),
     Param("duration", float, 15.0, "simulated seconds per episode, lock phase included",
@@ -130,6 +132,8 @@ class NaoWalk(Problem):
         """The controller for decision vector x (space order)."""
         if self.controller == "extended":
             return ExtendedCpg([float(v) for v in x], self._limits)
+        if self.controller == "stride":
+            return StrideCpg([float(v) for v in x], self._limits)
         return MatsuokaCpg(
             [float(v) for v in x],
             hip_limits=self._limits["llj3"],
@@ -201,7 +205,8 @@ def metaopt_problems() -> list[ProblemInfo]:
                 "Tune the 10 parameters of a two-neuron Matsuoka CPG (tau1, tau2, alpha, beta, "
                 "gamma, c, w11, w12, b1, b2) so the classic rcssserver3d NAO walks straight: "
                 "15 s episodes, 3 s lock phase, 50 Hz control, fitness X - |Y| with a fall "
-                "penalty. See docs/nao-walk.md."
+                "penalty; controller=extended or stride tunes a richer CPG instead. See "
+                "docs/nao-walk.md."
             ),
             default_budget=750,
         )

@@ -7,7 +7,7 @@ from importlib.resources import files
 
 import numpy as np
 
-from .plugin import CONTROLLER_SPACES
+from .plugin import CONTROLLER_SPACES, NaoWalk
 
 #: The engines a record's metrics cover.
 ENGINES = ("mujoco", "pybullet")
@@ -38,15 +38,19 @@ def gait_vector(record: dict) -> np.ndarray:
     return np.array([record["parameters"][name] for name in names], dtype=float)
 
 
-def gait_metrics(problem_params: dict, x: np.ndarray, seed: int, engine: str) -> dict:
-    """Decision vector x's episode metrics on one engine, from a fresh nao-walk problem made
-    with problem_params (backend replaced by engine)."""
+def gait_problem(problem_params: dict, engine: str) -> NaoWalk:
+    """A fresh nao-walk problem made with problem_params, backend replaced by engine."""
     from metaopt.params import resolve
     from metaopt.plugins import registry
 
     info = registry().problem("nao-walk")
-    params = resolve(info.params, {**problem_params, "backend": engine}, "nao-walk")
-    problem = info.factory(**params)
+    return info.factory(**resolve(info.params, {**problem_params, "backend": engine}, "nao-walk"))
+
+
+def gait_metrics(problem_params: dict, x: np.ndarray, seed: int, engine: str) -> dict:
+    """Decision vector x's episode metrics on one engine, from a fresh nao-walk problem made
+    with problem_params (backend replaced by engine)."""
+    problem = gait_problem(problem_params, engine)
     try:
         return dict(problem.evaluate(x, seed).metrics)
     finally:
