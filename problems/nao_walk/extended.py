@@ -1,5 +1,6 @@
-"""An extended CPG walking controller: the paper's Matsuoka rhythm, with lateral sway, knee lift,
-torso feedback and a smooth start (nao-walk's ``controller=extended``).
+"""Extended CPG walking controllers: the paper's Matsuoka rhythm, with lateral sway, knee lift,
+torso feedback and a smooth start (nao-walk's ``controller=extended``), and with an ankle
+push-off (``controller=stride``).
 
 The paper's controller moves only the six pitch joints, within Table 2's few degrees, and
 nothing shifts the weight sideways (docs/paper-reproduction.md). This one keeps a Matsuoka pair
@@ -22,6 +23,14 @@ Joint targets, server convention (docs/nao-walk.md), degrees here and radians on
 
 Everything but the torso feedback starts from the standing pose and reaches full size after
 RAMP_S seconds. Each target is clipped to its joint's limits.
+
+The stride controller (``controller=stride``) is this one with the hip feedback's range
+doubled and a leg's knee and ankle driven at free phases of its own signals (s and q signed
+for the leg: + for the left, - for the right):
+
+* knee: -(knee_bias + knee_lift * max(0, cos(knee_phase) s + sin(knee_phase) q));
+* ankle pitch: as above, plus push * (cos(push_phase) s + sin(push_phase) q), a push-off
+  (toes down while the leg is behind) for push > 0 at phase 0.
 """
 
 from __future__ import annotations
