@@ -2,8 +2,8 @@
 
 Each record was made by scripts/store_gait.py from the best evaluation of a run (the command
 that found it is in the record). On every engine its record *claims* (for hs_walk: MuJoCo; for
-the extended and stride controllers' gaits: docs/faster-walk.md) it must walk the 12 s walking phase
-without falling, at least the claimed distance (a little below what it reached) and with at
+the extended and stride controllers' gaits: docs/faster-walk.md) it must walk the 12 s walking
+phase without falling, at least the claimed distance (a little below what it reached) and with at
 most the claimed drift. On every engine, claimed or not, every metric must equal the stored
 record: the episode is deterministic, so any change is a change of the simulation or the
 controller; on an engine it does not claim the record documents the cross-engine transfer.
@@ -18,7 +18,7 @@ import pytest
 
 from metaopt.params import resolve
 from metaopt.plugins import registry
-from metaopt_problems.nao_walk.plugin import CONTROLLER_SPACES
+from metaopt_problems.nao_walk.plugin import CONTROLLERS
 from metaopt_problems.nao_walk.stored_gaits import (
     ENGINES,
     controller_params,
@@ -48,7 +48,7 @@ def _assert_equal_record(
 def test_every_controller_has_a_kept_gait_and_a_gait_walks_fast_on_both_engines() -> None:
     assert "hs_walk" in GAITS
     controllers = {load_gait(name)["problem_params"]["controller"] for name in GAITS}
-    assert controllers == set(CONTROLLER_SPACES)
+    assert controllers == set(CONTROLLERS)
     # docs/faster-walk.md's goal on both engines: 0.3 m/s over the 12 s walking phase
     assert any(
         set(gait["claims"]) == set(ENGINES)

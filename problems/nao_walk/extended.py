@@ -144,6 +144,7 @@ class ExtendedCpg:
         rad = math.pi / 180.0
         self._hip_bias, self._hip_swing = values["hip_bias"] * rad, values["hip_swing"] * rad
         self._knee_bias, self._knee_lift = values["knee_bias"] * rad, values["knee_lift"] * rad
+        self._lift_per_y = self._knee_lift / self._y_peak
         self._ankle_bias = values["ankle_bias"] * rad
         self._sway_s, self._sway_q = _phased(values["sway"] * rad, values["sway_phase"])
         self._configure(values)
@@ -185,7 +186,7 @@ class ExtendedCpg:
         """A leg's rhythmic (knee flexion, ankle pitch), radians, from its own signals (s and
         q signed for this leg, y its element's output): the knee lifts while its element is
         active, the ankle has no rhythm of its own."""
-        return self._knee_lift / self._y_peak * y, 0.0
+        return self._lift_per_y * y, 0.0
 
     def _leg(
         self, ramp: float, s: float, q: float, y: float, ankle: float, roll: float, first: int

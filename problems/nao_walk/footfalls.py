@@ -14,7 +14,6 @@ from .episode import EpisodeRunner, Gait
 CONTACT_FORCE_N = 5.0
 #: Seconds of the walking phase left out at its start: the gait grows over the first second.
 SETTLE_S = 2.0
-FEET = ("lfoot", "rfoot")
 
 
 @dataclass(frozen=True)
@@ -37,11 +36,14 @@ def footfalls(runner: EpisodeRunner, gait: Gait) -> Footfalls:
     bounces of a vibrating foot); the stride length is the torso's forward speed over it."""
     backend = runner.backend
     period = backend.settings.control_period
+    feet = backend.robot.contact_bodies  # the bodies contact_forces() reports, in its order
+    if len(feet) != 2:
+        raise ValueError(f"footfalls needs a robot with two feet, not contact bodies {feet}")
     rows: list[list[float]] = []
 
     def sample(steps: int) -> None:
         if steps * period > SETTLE_S:
-            left, right = (backend.body_position(foot)[:2] for foot in FEET)
+            left, right = (backend.body_position(foot)[:2] for foot in feet)
             forces = backend.contact_forces()
             torso_x = float(backend.root_position()[0])
             rows.append([*left, *right, float(forces[0]), float(forces[1]), torso_x])

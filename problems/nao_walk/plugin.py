@@ -10,8 +10,8 @@ fitness and the plain metrics are the worst engine's, and every engine's metrics
 
 from __future__ import annotations
 
-from collections.abc import Callable
-from typing import TYPE_CHECKING, Any
+from collections.abc import Callable, Mapping
+from typing import TYPE_CHECKING, Any, NamedTuple
 
 import numpy as np
 
@@ -21,6 +21,7 @@ from metaopt.params import Param
 from metaopt.physics import PhysicsSettings, engine_names
 from metaopt.plugins import registry
 from metaopt.problem import Evaluation, Problem, ProblemInfo, Sense
+from metaopt.space import Space
 
 if TYPE_CHECKING:
     from matplotlib.figure import Figure
@@ -31,10 +32,29 @@ from .extended import ExtendedCpg, StrideCpg, extended_space, stride_space
 from .robot import nao
 from .video import film
 
-#: The controllers nao-walk can tune, with their decision spaces: the paper's, and the
-#: extended and stride ones of extended.py.
-CONTROLLER_SPACES = {"paper": cpg_space, "extended": extended_space, "stride": stride_space}
-CONTROLLERS = tuple(CONTROLLER_SPACES)
+
+class ControllerKind(NamedTuple):
+    """A controller nao-walk can tune: its decision space, and how to build the gait for a
+    decision vector (parameters in space order, joint limits by joint name)."""
+
+    space: Callable[[], Space]
+    build: Callable[[list[float], Mapping[str, tuple[float, float]]], Gait]
+
+
+def _paper_cpg(params: list[float], limits: Mapping[str, tuple[float, float]]) -> MatsuokaCpg:
+    return MatsuokaCpg(
+        params, hip_limits=limits["llj3"], knee_limits=limits["llj4"], ankle_limits=limits["llj5"]
+    )
+
+
+#: The controllers nao-walk can tune: the paper's, and the extended and stride ones of
+#: extended.py.
+CONTROLLER_KINDS = {
+    "paper": ControllerKind(cpg_space, _paper_cpg),
+    "extended": ControllerKind(extended_space, ExtendedCpg),
+    "stride": ControllerKind(stride_space, StrideCpg),
+}
+CONTROLLERS = tuple(CONTROLLER_KINDS)
 
 PARAMS = (
     Param("backend", str, "mujoco", "physics engine (an installed physics backend plugin), or "
@@ -105,7 +125,7 @@ class NaoWalk(Problem):
                 f"nao-walk: unknown controller {controller!r}; accepted: {', '.join(CONTROLLERS)}"
             )
         self.controller = controller
-        self.space = CONTROLLER_SPACES[controller]()
+        self.space = CONTROLLER_KINDS[controller].space()
         self.fitness_kind = fitness
         self.physics = PhysicsSettings(substeps=substeps, servo_gain=servo_gain, friction=friction)
         self.episode = EpisodeSettings(duration, lock, fall_height, fall_tilt)
@@ -130,16 +150,7 @@ class NaoWalk(Problem):
 
     def gait(self, x: np.ndarray) -> Gait:
         """The controller for decision vector x (space order)."""
-        if self.controller == "extended":
-            return ExtendedCpg([float(v) for v in x], self._limits)
-        if self.controller == "stride":
-            return StrideCpg([float(v) for v in x], self._limits)
-        return MatsuokaCpg(
-            [float(v) for v in x],
-            hip_limits=self._limits["llj3"],
-            knee_limits=self._limits["llj4"],
-            ankle_limits=self._limits["llj5"],
-        )
+        return CONTROLLER_KINDS[self.controller].build([float(v) for v in x], self._limits)
 
     def disturbance(self, seed: int) -> Disturbance | None:
         """The episode conditions seed draws at this problem's noise (None when noise is 0)."""

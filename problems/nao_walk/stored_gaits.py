@@ -7,7 +7,7 @@ from importlib.resources import files
 
 import numpy as np
 
-from .plugin import CONTROLLER_SPACES, NaoWalk
+from .plugin import CONTROLLER_KINDS, NaoWalk
 
 #: The engines a record's metrics cover.
 ENGINES = ("mujoco", "pybullet")
@@ -15,7 +15,7 @@ ENGINES = ("mujoco", "pybullet")
 
 def controller_params(controller: str) -> tuple[str, ...]:
     """A controller's parameter names, in decision-vector order."""
-    return tuple(CONTROLLER_SPACES[controller]().names)
+    return tuple(CONTROLLER_KINDS[controller].space().names)
 
 
 def stored_gait_names() -> list[str]:
