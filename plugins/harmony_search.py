@@ -20,6 +20,12 @@ Pitch adjustment (``pitch_adjust``):
 
 Out-of-bound values are repaired by ``Space.repair`` (``repair``: clip or reflect).
 
+Restarts (``restart_after``, off by default): once that many harmonies in a row have been told
+without improving the memory's best, the memory is emptied and refilled with new random
+points, as at the start, and the ``ihs``/``ghs`` schedules start again over the budget left. A
+memory that has converged on a poor region (a robot that stands still) otherwise stays there
+for the rest of the run; the run keeps its best evaluation whatever the memory forgets.
+
 Defaults (hms 20, hmcr 0.9, par 0.3, bandwidth 0.01) reach about 1e-4 on the 10-D sphere
 ([-5.12, 5.12]) in 20,000 evaluations, and mostly below 0.05 on 10-D Rastrigin. For ``ihs``
 and ``ghs`` the schedules span ``budget``, which the run loop sets to the run's budget.
@@ -82,6 +88,7 @@ class HarmonySearch(Optimizer):
         bandwidth_min: float,
         bandwidth_max: float,
         budget: int,
+        restart_after: int,
         repair: str,
     ) -> None:
         super().__init__(space, seed)
@@ -104,6 +111,7 @@ class HarmonySearch(Optimizer):
         self.bandwidth_min = bandwidth_min
         self.bandwidth_max = bandwidth_max
         self.budget = budget
+        self.restart_after = restart_after
         self.repair = repair
 
         # Resampling only ever yields memory values or random values inside the bounds.
@@ -123,6 +131,13 @@ class HarmonySearch(Optimizer):
         self._worst_fitness = math.inf
         self._best = 0
         self._improvisations = 0
+        self._told = 0
+        # Harmonies told in a row without improving the memory's best, and restarts so far.
+        self._stalled = 0
+        self._restarts = 0
+        # The ihs/ghs schedules run over schedule_length improvisations from schedule_start.
+        self._schedule_start = 0
+        self._schedule_length = max(budget - hms, 1)
         # The current block: where each value of each harmony comes from, and its pitch step.
         self._source = np.empty((0, dim), dtype=np.intp)
         self._step: np.ndarray | None = None
@@ -150,6 +165,11 @@ class HarmonySearch(Optimizer):
         """How many harmonies have been improvised (random initial points not counted)."""
         return self._improvisations
 
+    @property
+    def restarts(self) -> int:
+        """How many times the memory has been refilled at random (restart_after)."""
+        return self._restarts
+
     def par_at(self, improvisation: np.ndarray | int) -> np.ndarray:
         """PAR used by the improvisation(s) with this 0-based index."""
         improvisation = np.asarray(improvisation, dtype=float)
@@ -169,9 +189,9 @@ class HarmonySearch(Optimizer):
         return self.bandwidth_max * ratio ** self._progress(improvisation)
 
     def _progress(self, improvisation: np.ndarray) -> np.ndarray:
-        """Mahdavi's gn / NI: 1/NI for the first improvisation, 1 from the last one on."""
-        improvisations_in_budget = max(self.budget - self.hms, 1)
-        return np.minimum((improvisation + 1.0) / improvisations_in_budget, 1.0)
+        """Mahdavi's gn / NI: 1/NI for the first improvisation (of the run, or since the last
+        restart), 1 from the last one on."""
+        return np.minimum((improvisation - self._schedule_start + 1.0) / self._schedule_length, 1.0)
 
     def ask(self, n: int) -> np.ndarray:
         """Random points while the memory fills, then n harmonies improvised from the memory."""
@@ -240,15 +260,34 @@ class HarmonySearch(Optimizer):
         self._position = self._prepared_end = 0
 
     def tell(self, candidates: np.ndarray, fitnesses: np.ndarray) -> None:
-        """Fill the memory, then let each candidate replace the worst harmony if strictly better."""
+        """Fill the memory, then let each candidate replace the worst harmony if strictly better;
+        restart once restart_after candidates in a row have not improved the best."""
         fitness_values = np.asarray(fitnesses, dtype=float).ravel().tolist()
         if len(candidates) != len(fitness_values):
             raise ValueError(f"{len(candidates)} candidates but {len(fitness_values)} fitnesses")
         for index, fitness in enumerate(fitness_values):
+            self._told += 1
             if self._filled < self.hms:
                 self._fill(candidates[index], fitness)
-            elif fitness < self._worst_fitness:
+                continue
+            self._stalled = 0 if fitness < self._fitness[self._best] else self._stalled + 1
+            if fitness < self._worst_fitness:
                 self._replace_worst(candidates[index], fitness)
+            if self.restart_after and self._stalled >= self.restart_after:
+                self._restart()
+
+    def _restart(self) -> None:
+        """Empty the memory (it refills with random points) and restart the schedules over the
+        budget left; the current block of choices is dropped, its schedule values being stale."""
+        self._restarts += 1
+        self._filled = self._stalled = 0
+        self._fitness[:] = np.inf
+        self._schedule_start = self._improvisations
+        self._schedule_length = max(self.budget - self._told - self.hms, 1)
+        self._source = np.empty((0, self.space.dim), dtype=np.intp)
+        self._step = None
+        self._position = self._prepared_end = 0
+        self._block_rng_state = None
 
     def _fill(self, candidate: np.ndarray, fitness: float) -> None:
         # NaN would never compare worse than anything and so would stay in memory for good.
@@ -289,6 +328,10 @@ class HarmonySearch(Optimizer):
             "fitness": [_json_float(f) for f in self._fitness[: self._filled].tolist()],
             "best": self._best,
             "improvisations": self._improvisations,
+            "told": self._told,
+            "stalled": self._stalled,
+            "restarts": self._restarts,
+            "schedule": [self._schedule_start, self._schedule_length],
             "block_rng": self._block_rng_state,
             "block_position": self._position,
             "rng": rng_state(self.rng),
@@ -309,6 +352,13 @@ class HarmonySearch(Optimizer):
             self._update_worst()
             self._copy_best()
         self._improvisations = state["improvisations"]
+        # States saved before restarts existed: no restart yet, schedules over the budget.
+        self._told = state.get("told", filled + self._improvisations)
+        self._stalled = state.get("stalled", 0)
+        self._restarts = state.get("restarts", 0)
+        self._schedule_start, self._schedule_length = state.get(
+            "schedule", (0, max(self.budget - self.hms, 1))
+        )
         self._source = np.empty((0, self.space.dim), dtype=np.intp)
         self._step = None
         self._position = self._prepared_end = 0
@@ -390,6 +440,14 @@ PARAMS = (
         "evaluations in the run, initial memory included, over which the ihs and ghs schedules "
         "run (metaopt run sets the run's budget unless given; past it they stay at the end)",
         low=1,
+    ),
+    Param(
+        "restart_after",
+        int,
+        0,
+        "restart: after this many harmonies in a row that do not improve the memory's best, "
+        "refill the memory at random and restart the ihs/ghs schedules (0: never)",
+        low=0,
     ),
     repair_param("how values pushed past a bound come back: clip to it or reflect off it"),
 )

@@ -264,8 +264,9 @@ def test_reaches_the_sphere_optimum_and_beats_random_sampling():
 
 @pytest.mark.parametrize("pitch_adjust", PITCH_ADJUSTMENTS)
 @pytest.mark.parametrize("stop_after", [3, 10, 500, 900])
-def test_json_state_round_trip_continues_identically(pitch_adjust, stop_after):
-    given = {"hms": 8, "pitch_adjust": pitch_adjust, "budget": 2000}
+@pytest.mark.parametrize("restart_after", [0, 25])
+def test_json_state_round_trip_continues_identically(pitch_adjust, stop_after, restart_after):
+    given = {"hms": 8, "pitch_adjust": pitch_adjust, "budget": 2000, "restart_after": restart_after}
     reference = build(seed=5, **given)
     interrupted = build(seed=5, **given)
     run(reference, stop_after, batch=3)
@@ -285,6 +286,7 @@ def test_json_state_round_trip_continues_identically(pitch_adjust, stop_after):
     np.testing.assert_array_equal(resumed.harmony_memory, reference.harmony_memory)
     np.testing.assert_array_equal(resumed.harmony_fitness, reference.harmony_fitness)
     assert resumed.state_dict() == reference.state_dict()
+    assert (resumed.restarts > 0) == (restart_after > 0)
 
 
 def test_same_seed_same_sequence_different_seeds_differ():
@@ -302,3 +304,69 @@ def test_a_batch_is_improvised_from_one_memory():
     one_by_one = np.concatenate([single.ask(1) for _ in range(2000)])
     np.testing.assert_array_equal(batch, one_by_one)
     assert batched.improvisations == 2000
+
+
+def test_restart_refills_the_memory_after_restart_after_stalled_harmonies():
+    space = Space.from_bounds([0.0] * 3, [1.0] * 3)
+    optimizer = build(space, seed=2, hms=4, restart_after=50, budget=1000, pitch_adjust="ihs")
+    memory = space.sample(np.random.default_rng(0), 4)
+    fill(optimizer, memory, np.array([0.0, 1.0, 2.0, 3.0]))
+    # 49 harmonies no better than the best: the memory takes some, the best stays
+    stalled = optimizer.ask(49)
+    optimizer.tell(stalled, np.full(49, 0.5))
+    assert optimizer.restarts == 0
+    assert len(optimizer.harmony_memory) == 4
+    # an improvement starts the count again
+    optimizer.tell(optimizer.ask(1), np.array([-1.0]))
+    optimizer.tell(optimizer.ask(49), np.full(49, 0.0))
+    assert optimizer.restarts == 0
+    optimizer.tell(optimizer.ask(1), np.array([0.0]))  # the 50th in a row: restart
+    assert optimizer.restarts == 1
+    assert len(optimizer.harmony_memory) == 0
+    # the memory refills with uniform random points, then improvisation starts again
+    refill = optimizer.ask(4)
+    assert not in_column(refill, memory).any()
+    optimizer.tell(refill, np.arange(4.0))
+    np.testing.assert_array_equal(optimizer.harmony_memory, refill)
+    # the ihs schedules start again over the 1000 - 104 told - 4 evaluations left
+    first = optimizer.improvisations
+    np.testing.assert_allclose(optimizer.par_at(first), 0.01 + 0.98 / 892)
+    np.testing.assert_allclose(optimizer.bandwidth_at(first + 891), 1e-5)
+    harmonies = optimizer.ask(200)  # improvised from the new memory only
+    assert in_column(harmonies, refill).mean() > 0.7  # hmcr 0.9, PAR 0.01 .. 0.23
+    assert not in_column(harmonies, memory).any()
+
+
+def test_no_restart_by_default_and_restarts_escape_a_stalled_memory():
+    """A trap: fitness 0 on most of the box, a narrow well of fitness -1 elsewhere.
+    Without restarts a memory filled on the plateau stays there; with them it finds the well."""
+    space = Space.from_bounds([0.0, 0.0], [1.0, 1.0])
+
+    def trap(x: np.ndarray) -> np.ndarray:
+        return np.where(np.all(np.abs(x - 0.9) < 0.05, axis=1), -1.0, 0.0)
+
+    def best_found(**given) -> float:
+        optimizer = build(space, seed=7, hms=10, hmcr=1.0, par=0.0, budget=3000, **given)
+        best = np.inf
+        for _ in range(3000):
+            candidates = optimizer.ask(1)
+            fitness = trap(candidates)
+            optimizer.tell(candidates, fitness)
+            best = min(best, float(fitness[0]))
+        return best
+
+    assert best_found() == 0.0  # hmcr 1, par 0: only recombines its first random memory
+    assert best_found(restart_after=20) == -1.0
+
+
+def test_a_state_saved_before_restarts_existed_still_resumes():
+    given = {"hms": 8, "pitch_adjust": "ihs", "budget": 2000}
+    reference, old = build(seed=5, **given), build(seed=5, **given)
+    run(reference, 300, batch=3)
+    run(old, 300, batch=3)
+    state = old.state_dict()
+    for key in ("told", "stalled", "restarts", "schedule"):
+        del state[key]
+    resumed = build(seed=1, **given)
+    resumed.load_state_dict(state)
+    np.testing.assert_array_equal(run(resumed, 500, batch=3), run(reference, 500, batch=3))
