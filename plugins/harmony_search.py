@@ -137,7 +137,7 @@ class HarmonySearch(Optimizer):
         self._restarts = 0
         # The ihs/ghs schedules run over schedule_length improvisations from schedule_start.
         self._schedule_start = 0
-        self._schedule_length = max(budget - hms, 1)
+        self._schedule_length = self._run_schedule_length()
         # The current block: where each value of each harmony comes from, and its pitch step.
         self._source = np.empty((0, dim), dtype=np.intp)
         self._step: np.ndarray | None = None
@@ -164,6 +164,10 @@ class HarmonySearch(Optimizer):
     def improvisations(self) -> int:
         """How many harmonies have been improvised (random initial points not counted)."""
         return self._improvisations
+
+    def _run_schedule_length(self) -> int:
+        """Improvisations the ihs/ghs schedules span when the run never restarts: NI."""
+        return max(self.budget - self.hms, 1)
 
     @property
     def restarts(self) -> int:
@@ -270,7 +274,8 @@ class HarmonySearch(Optimizer):
             if self._filled < self.hms:
                 self._fill(candidates[index], fitness)
                 continue
-            self._stalled = 0 if fitness < self._fitness[self._best] else self._stalled + 1
+            if self.restart_after:
+                self._stalled = 0 if fitness < self._fitness[self._best] else self._stalled + 1
             if fitness < self._worst_fitness:
                 self._replace_worst(candidates[index], fitness)
             if self.restart_after and self._stalled >= self.restart_after:
@@ -284,10 +289,14 @@ class HarmonySearch(Optimizer):
         self._fitness[:] = np.inf
         self._schedule_start = self._improvisations
         self._schedule_length = max(self.budget - self._told - self.hms, 1)
+        self._drop_block()
+        self._block_rng_state = None
+
+    def _drop_block(self) -> None:
+        """Forget the current block of choices and the harmonies built from it."""
         self._source = np.empty((0, self.space.dim), dtype=np.intp)
         self._step = None
         self._position = self._prepared_end = 0
-        self._block_rng_state = None
 
     def _fill(self, candidate: np.ndarray, fitness: float) -> None:
         # NaN would never compare worse than anything and so would stay in memory for good.
@@ -357,11 +366,9 @@ class HarmonySearch(Optimizer):
         self._stalled = state.get("stalled", 0)
         self._restarts = state.get("restarts", 0)
         self._schedule_start, self._schedule_length = state.get(
-            "schedule", (0, max(self.budget - self.hms, 1))
+            "schedule", (0, self._run_schedule_length())
         )
-        self._source = np.empty((0, self.space.dim), dtype=np.intp)
-        self._step = None
-        self._position = self._prepared_end = 0
+        self._drop_block()
         self._block_rng_state = state["block_rng"]
         if self._block_rng_state is not None:
             position = state["block_position"]
