@@ -9,7 +9,7 @@ import pytest
 from click.testing import CliRunner
 from matplotlib.image import imread
 
-from metaopt.cli_report import report
+from metaopt.cli.report import report
 from metaopt.convergence import convergence, group_runs
 from metaopt.plugins import registry
 from metaopt.report import comparison_figures, run_figures, write_figures

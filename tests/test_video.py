@@ -10,7 +10,7 @@ import imageio_ffmpeg
 import numpy as np
 import pytest
 
-from metaopt.cli_report import write_replay_video
+from metaopt.cli.report import write_replay_video
 from metaopt.errors import ConfigError
 from metaopt.physics import PhysicsSettings
 from metaopt.plugins import registry

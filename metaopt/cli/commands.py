@@ -9,7 +9,7 @@ import sys
 import click
 
 from metaopt import display
-from metaopt.cli_common import (
+from metaopt.cli.common import (
     build_executor,
     console,
     db_option,
@@ -17,9 +17,9 @@ from metaopt.cli_common import (
     require_store,
     scheduling_options,
 )
-from metaopt.cli_compare import compare
-from metaopt.cli_new import new
-from metaopt.cli_report import report, write_replay_video
+from metaopt.cli.compare import compare
+from metaopt.cli.new import new
+from metaopt.cli.report import report, write_replay_video
 from metaopt.errors import MetaoptError
 from metaopt.export import FORMATS, export_run
 from metaopt.plugins import registry

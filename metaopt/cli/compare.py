@@ -9,7 +9,7 @@ from pathlib import Path
 import click
 
 from metaopt import display
-from metaopt.cli_common import build_executor, console, db_option, errors, scheduling_options
+from metaopt.cli.common import build_executor, console, db_option, errors, scheduling_options
 from metaopt.comparison import compare as compare_cells
 from metaopt.errors import ConfigError
 from metaopt.experiment import Experiment, experiment_from_flags, load_experiment

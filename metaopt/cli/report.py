@@ -10,7 +10,7 @@ from typing import Any
 
 import click
 
-from metaopt.cli_common import db_option, require_store
+from metaopt.cli.common import db_option, require_store
 from metaopt.convergence import GROUP_BY
 from metaopt.plugins import registry
 from metaopt.store import RunStore
