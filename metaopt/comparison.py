@@ -22,11 +22,12 @@ from metaopt.store import RunRecord
 
 @dataclass(frozen=True)
 class FinishedRun:
-    """What the comparison uses of one finished run: its best evaluation and its cost."""
+    """What the comparison uses of one finished run: its best candidate (aggregated over its
+    samples when resampled) and its cost."""
 
     run: RunRecord
     best_fitness: float | None
-    #: the best evaluation's metrics
+    #: the best candidate's metrics
     metrics: dict[str, float]
     #: evaluations spent until one reached the target (None: never, or no target)
     evaluations_to_target: int | None
@@ -86,7 +87,7 @@ def finished_runs(
 def _finished_run(
     record: RunRecord, store: ExperimentStore, traits: ProblemTraits, target: float | None
 ) -> FinishedRun:
-    best = store.best_evaluation(record)
+    best = store.best_candidate(record)
     reached = None
     if target is not None and best is not None and traits.reaches(best.fitness, target):
         reached = next(

@@ -6,6 +6,7 @@ import inspect
 import math
 import time
 from collections.abc import Sequence
+from typing import Any
 
 from rich.console import Console
 from rich.progress import (
@@ -21,7 +22,7 @@ from rich.table import Table
 from metaopt.params import Param
 from metaopt.replay import Replay
 from metaopt.run_loop import RunResult
-from metaopt.store import EvaluationRecord, RunRecord
+from metaopt.store import CandidateRecord, RunRecord
 
 PROGRESS_REFRESH = 0.1
 
@@ -111,8 +112,8 @@ class RichProgress:
         self._bar.update(self._task, completed=done, best=format_number(best), rate=f"{rate:,.0f}")
 
 
-def result_table(result: RunResult, db_path: str, seed: int) -> Table:
-    """The summary printed after a run."""
+def result_table(result: RunResult, db_path: str, seed: int, startup_time: float = 0.0) -> Table:
+    """The summary printed after a run (its wall time includes starting the workers)."""
     table = Table(title=f"Run {result.run_id} ({result.status})", title_justify="left")
     table.add_column("", style="bold")
     table.add_column("value")
@@ -123,7 +124,8 @@ def result_table(result: RunResult, db_path: str, seed: int) -> Table:
         for name, value in zip(result.names, result.best_x):
             table.add_row(f"  {name}", format_number(float(value)))
     table.add_row("evaluations", f"{result.evaluations} ({result.failed} failed)")
-    table.add_row("wall time", f"{result.wall_time:.2f} s")
+    starting = f" (of which starting workers {startup_time:.2f} s)" if startup_time >= 0.01 else ""
+    table.add_row("wall time", f"{result.wall_time:.2f} s{starting}")
     table.add_row("seed", str(seed))
     table.add_row("run id", f"{result.run_id}  (in {db_path})")
     return table
@@ -141,7 +143,7 @@ def replay_table(replay: Replay) -> Table:
     }
     setting = ", ".join(f"{k}={v}" for k, v in changed.items()) or "as stored"
     table = Table(
-        title=f"run {replay.run.id}, evaluation {replay.stored.index} replayed ({setting})",
+        title=f"run {replay.run.id}, {replay.stored.describe()} replayed ({setting})",
         title_justify="left",
     )
     table.add_column("")
@@ -166,33 +168,103 @@ def replay_table(replay: Replay) -> Table:
     return table
 
 
-def runs_table(runs: Sequence[RunRecord], counts: dict[int, tuple[int, int]], best) -> Table:
-    """`metaopt runs`: one row per run."""
+def settings_text(settings: dict[str, Any]) -> str:
+    """A run's scheduling settings in a few words: 'sync', 'async, resample 3 (mean), limit
+    2 s'."""
+    parts = [settings.get("mode", "sync")]
+    if settings.get("batch"):
+        parts.append(f"batch {settings['batch']}")
+    if settings.get("resample", 1) > 1:
+        parts.append(f"resample {settings['resample']} ({settings.get('aggregate', 'mean')})")
+    if settings.get("time_limit") is not None:
+        parts.append(f"limit {settings['time_limit']:g} s")
+    return ", ".join(parts)
+
+
+def run_summary(
+    run: RunRecord, counts: tuple[int, int], best: float | None, experiment: str | None
+) -> dict[str, Any]:
+    """One run of `metaopt runs` as named fields (its CSV and JSON form)."""
+    return {
+        "id": run.id,
+        "optimizer": run.optimizer,
+        "problem": run.problem,
+        "backend": run.problem_params.get("backend"),
+        "experiment": experiment,
+        "settings": settings_text(run.settings),
+        "seed": run.seed,
+        "evaluations": counts[0],
+        "budget": run.budget,
+        "failed": counts[1],
+        "best": best,
+        "status": run.status,
+        "started": run.started_at,
+    }
+
+
+def runs_table(
+    runs: Sequence[RunRecord],
+    counts: dict[int, tuple[int, int]],
+    best: dict[int, float | None],
+    experiments: dict[int, str],
+) -> Table:
+    """`metaopt runs`: one row per run (cells fold rather than being cut in a narrow
+    terminal)."""
     table = Table(title="runs", title_justify="left")
-    for column in ("id", "optimizer", "problem", "seed", "evals", "failed", "best", "status"):
-        table.add_column(column)
-    table.add_column("started", style="dim")
+    headers = ("id", "optimizer", "problem", "backend", "experiment", "settings", "seed",
+               "evals", "failed", "best", "status", "started")  # fmt: skip
+    for column in headers:
+        table.add_column(column, overflow="fold", style="dim" if column == "started" else None)
     for run in runs:
-        total, failed = counts[run.id]
+        fields = run_summary(run, counts[run.id], best[run.id], experiments.get(run.id))
         table.add_row(
-            str(run.id),
-            run.optimizer,
-            run.problem,
-            str(run.seed),
-            f"{total}/{run.budget}",
-            str(failed),
-            format_number(best[run.id]),
-            run.status,
-            run.started_at,
-        )
+            str(run.id), run.optimizer, run.problem, fields["backend"] or "-",
+            fields["experiment"] or "-", fields["settings"], str(run.seed),
+            f"{fields['evaluations']}/{run.budget}", str(fields["failed"]),
+            format_number(best[run.id]), run.status, run.started_at,
+        )  # fmt: skip
     return table
 
 
-def run_detail(run: RunRecord, counts: tuple[int, int], best: EvaluationRecord | None) -> Table:
+def run_document(
+    run: RunRecord, counts: tuple[int, int], best: CandidateRecord | None
+) -> dict[str, Any]:
+    """`metaopt show RUN --format json|csv`: everything stored about one run, best included."""
+    return {
+        "id": run.id,
+        "status": run.status,
+        "message": run.message,
+        "optimizer": run.optimizer,
+        "optimizer_params": run.optimizer_params,
+        "problem": run.problem,
+        "problem_params": run.problem_params,
+        "sense": run.sense,
+        "settings": run.settings,
+        "seed": run.seed,
+        "budget": run.budget,
+        "evaluations": counts[0],
+        "failed": counts[1],
+        "started_at": run.started_at,
+        "ended_at": run.ended_at,
+        "wall_time": run.wall_time,
+        "best": None
+        if best is None
+        else {
+            "fitness": best.fitness,
+            "candidate": best.number,
+            "evaluations": [e.index for e in best.samples],
+            "metrics": best.metrics,
+            "x": dict(zip([v["name"] for v in run.space], best.x.tolist())),
+        },
+        "versions": run.versions,
+    }
+
+
+def run_detail(run: RunRecord, counts: tuple[int, int], best: CandidateRecord | None) -> Table:
     """`metaopt show RUN`: everything stored about one run."""
     table = Table(title=f"run {run.id}", title_justify="left", show_header=False)
-    table.add_column("", style="bold")
-    table.add_column("")
+    table.add_column("", style="bold", overflow="fold")
+    table.add_column("", overflow="fold")
     table.add_row("status", run.status + (f" ({run.message})" if run.message else ""))
     table.add_row("optimizer", run.optimizer)
     for name, value in run.optimizer_params.items():
@@ -200,12 +272,13 @@ def run_detail(run: RunRecord, counts: tuple[int, int], best: EvaluationRecord |
     table.add_row("problem", f"{run.problem} ({run.sense})")
     for name, value in run.problem_params.items():
         table.add_row(f"  {name}", str(value))
+    table.add_row("settings", settings_text(run.settings))
     table.add_row("seed", str(run.seed))
     table.add_row("evaluations", f"{counts[0]} of {run.budget} ({counts[1]} failed)")
     table.add_row("started / ended", f"{run.started_at} / {run.ended_at or '-'}")
     table.add_row("wall time", "-" if run.wall_time is None else f"{run.wall_time:.2f} s")
     if best is not None:
-        table.add_row("best fitness", f"{format_number(best.fitness)} (evaluation {best.index})")
+        table.add_row("best fitness", f"{format_number(best.fitness)} ({best.describe()})")
         for name, value in best.metrics.items():
             table.add_row(f"  {name}", format_number(value))
         for variable, value in zip(run.space, best.x):

@@ -23,3 +23,15 @@ class EvaluationError(MetaoptError):
 
     The run loop records the evaluation as failed with this message and goes on.
     """
+
+
+class RunFailed(MetaoptError):
+    """A run stopped without a result: its evaluations all failed (the message gives the first
+    error). Not bad command-line input as such, so the CLI exits with 1, not 2."""
+
+    exit_code = 1
+
+
+class SettingWarning(UserWarning):
+    """Settings that run but hardly as meant (a budget smaller than an initial population); the
+    CLI prints it as one 'Warning:' line."""

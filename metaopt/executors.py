@@ -142,6 +142,9 @@ class Executor(ABC):
 
     #: How many tasks run at once.
     workers: int = 1
+    #: Seconds it took to start (worker processes, a cluster), set by whoever built it; a run
+    #: counts them in its wall time.
+    startup_time: float = 0.0
 
     @property
     def capacity(self) -> int:

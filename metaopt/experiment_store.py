@@ -27,6 +27,17 @@ CREATE TABLE IF NOT EXISTS experiment_runs (
 """
 
 
+def experiment_names(store: RunStore) -> dict[int, str]:
+    """Run id -> the experiment it belongs to, for the runs that belong to one (read only: a
+    store without experiments is not changed)."""
+    if not store.read("SELECT 1 FROM sqlite_master WHERE name = 'experiment_runs'"):
+        return {}
+    return {
+        run_id: name
+        for name, run_id in store.read("SELECT experiment, run_id FROM experiment_runs")
+    }
+
+
 class ExperimentStore(RunStore):
     """A RunStore with experiment membership: which run is (experiment, cell, seed)."""
 

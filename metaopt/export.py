@@ -13,7 +13,9 @@ FORMATS = ("csv", "json")
 
 
 def export_run(store: RunStore, run_id: int | str, fmt: str, out: TextIO) -> int:
-    """Write every evaluation of a run to ``out``; return how many were written."""
+    """Write every evaluation of a run to ``out``, each with its candidate (resampled runs
+    evaluate a candidate several times), and in JSON the run's settings; return how many
+    evaluations were written."""
     if fmt not in FORMATS:
         raise ConfigError(f"unknown export format {fmt!r}; accepted: {', '.join(FORMATS)}")
     run = store.run(run_id)
@@ -32,12 +34,16 @@ def export_run(store: RunStore, run_id: int | str, fmt: str, out: TextIO) -> int
                     "budget": run.budget,
                     "sense": run.sense,
                     "status": run.status,
+                    "message": run.message,
+                    "settings": run.settings,
+                    "wall_time": run.wall_time,
                     "space": run.space,
                     "versions": run.versions,
                 },
                 "evaluations": [
                     {
                         "index": e.index,
+                        "candidate": e.candidate,
                         "status": e.status,
                         "fitness": e.fitness,
                         "x": dict(zip(names, e.x.tolist())),
@@ -56,13 +62,13 @@ def export_run(store: RunStore, run_id: int | str, fmt: str, out: TextIO) -> int
         return len(evaluations)
     metric_names = sorted({name for e in evaluations for name in e.metrics})
     writer = csv.writer(out, lineterminator="\n")
-    writer.writerow(
-        ["index", "status", "fitness", *names, *metric_names, "seed", "wall_time", "error"]
-    )
+    header = ["index", "candidate", "status", "fitness", *names, *metric_names]
+    writer.writerow([*header, "seed", "wall_time", "error"])
     for e in evaluations:
         writer.writerow(
             [
                 e.index,
+                e.candidate,
                 e.status,
                 "" if e.fitness is None else repr(e.fitness),
                 *(repr(v) for v in e.x.tolist()),

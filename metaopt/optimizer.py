@@ -33,6 +33,11 @@ class Optimizer(ABC):
         """How many candidates the optimizer prefers to be asked for at once."""
         return 1
 
+    def budget_warning(self, candidates: int) -> str | None:
+        """Why a run that tells this optimizer ``candidates`` candidates would hardly be what
+        the user meant (e.g. no more than its random initial population), or None."""
+        return None
+
     @abstractmethod
     def ask(self, n: int) -> np.ndarray:
         """Propose n candidates, shape (n, dim), inside the space."""

@@ -113,10 +113,17 @@ def _fmt(number: float) -> str:
     return f"{number:g}"
 
 
+def close_matches(name: str, known: Sequence[str]) -> list[str]:
+    """Up to three of ``known`` that look like ``name``, ignoring case, closest first."""
+    by_lower = {k.lower(): k for k in known}
+    close = difflib.get_close_matches(name.lower(), list(by_lower), n=3, cutoff=0.5)
+    return [by_lower[c] for c in close]
+
+
 def suggest(name: str, known: Sequence[str]) -> str:
-    """' Did you mean ...?' for close matches, or ''."""
-    close = difflib.get_close_matches(name, list(known), n=3, cutoff=0.5)
-    return f" Did you mean {' or '.join(repr(c) for c in close)}?" if close else ""
+    """' Did you mean ...?' for close matches (ignoring case), or ''."""
+    close = close_matches(name, known)
+    return f" Did you mean {' or '.join(map(repr, close))}?" if close else ""
 
 
 def resolve(params: Sequence[Param], given: Mapping[str, Any], owner: str) -> dict[str, Any]:

@@ -14,7 +14,7 @@ import pluggy
 
 from metaopt import hookspecs
 from metaopt.errors import ConfigError
-from metaopt.params import suggest
+from metaopt.params import close_matches, suggest
 
 ENTRY_POINT_GROUP = "metaopt"
 #: Comma-separated entry-point names to load; unset loads all, empty loads none.
@@ -82,6 +82,29 @@ class Registry:
         """The BackendInfo called name, or a ConfigError listing the installed ones."""
         return _lookup(self.physics_backends, name, "physics backend")
 
+    def tables(self) -> dict[str, dict[str, Any]]:
+        """Every kind's table by the kind's name."""
+        return {
+            "optimizer": self.optimizers,
+            "problem": self.problems,
+            "physics backend": self.physics_backends,
+            "executor": self.executors,
+        }
+
+    def any_kind(self, name: str) -> tuple[str, Any]:
+        """(kind, info) of the plugin called name, whatever its kind, or a ConfigError with the
+        close matches among every kind (ignoring case)."""
+        for kind, table in self.tables().items():
+            if name in table:
+                return kind, table[name]
+        kinds = {known: kind for kind, table in self.tables().items() for known in table}
+        close = [f"{match!r} ({kinds[match]})" for match in close_matches(name, list(kinds))]
+        hint = f" Did you mean {' or '.join(close)}?" if close else ""
+        raise ConfigError(
+            f"unknown plugin {name!r}.{hint} Installed: "
+            + "; ".join(f"{kind}s {', '.join(table)}" for kind, table in self.tables().items())
+        )
+
 
 def _lookup(table: dict[str, Any], name: str, kind: str):
     if name in table:
@@ -99,7 +122,15 @@ def build_manager(extra_modules: Iterable[ModuleType] = ()) -> tuple[pluggy.Plug
     sources: dict[str, PluginSource] = {}
     wanted = os.environ.get(LOAD_PLUGINS_ENV)
     allowed = None if wanted is None else {n.strip() for n in wanted.split(",") if n.strip()}
-    for entry_point in importlib.metadata.entry_points(group=ENTRY_POINT_GROUP):
+    entry_points = importlib.metadata.entry_points(group=ENTRY_POINT_GROUP)
+    unknown = sorted((allowed or set()) - {entry_point.name for entry_point in entry_points})
+    if unknown:
+        raise ConfigError(
+            f"{LOAD_PLUGINS_ENV} names no installed plugin {', '.join(map(repr, unknown))}; it "
+            f"takes entry-point names (not optimizer or problem names): "
+            f"{', '.join(sorted({entry_point.name for entry_point in entry_points}))}"
+        )
+    for entry_point in entry_points:
         if allowed is not None and entry_point.name not in allowed:
             continue
         if manager.has_plugin(entry_point.name):

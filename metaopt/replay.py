@@ -12,23 +12,25 @@ from metaopt.executors import EvaluationTask, Outcome, adopt_problem, evaluate_t
 from metaopt.params import resolve
 from metaopt.plugins import Registry
 from metaopt.problem import ProblemInfo
-from metaopt.store import EvaluationRecord, RunRecord, RunStore
+from metaopt.resampling import aggregate_samples
+from metaopt.store import CandidateRecord, RunRecord, RunStore
 
 
 @dataclass
 class Replay:
-    """The stored best evaluation beside its re-evaluation."""
+    """The stored best candidate beside its re-evaluation (with resampling: every sample again
+    with its own seed, aggregated alike)."""
 
     run: RunRecord
-    stored: EvaluationRecord
+    stored: CandidateRecord
     problem_params: dict[str, Any]
     replayed: Outcome
 
 
-def stored_best(store: RunStore, run_id: int | str) -> tuple[RunRecord, EvaluationRecord]:
-    """Run ``run_id`` and its best successful evaluation (StoreError when it has none)."""
+def stored_best(store: RunStore, run_id: int | str) -> tuple[RunRecord, CandidateRecord]:
+    """Run ``run_id`` and its best candidate (StoreError when it has no successful one)."""
     run = store.run(run_id)
-    best = store.best_evaluation(run)
+    best = store.best_candidate(run)
     if best is None:
         raise StoreError(f"run {run.id} has no successful evaluation to replay")
     return run, best
@@ -52,7 +54,7 @@ def replay_params(
 def replay_best(
     store: RunStore, run_id: int | str, plugins: Registry, overrides: dict[str, Any]
 ) -> Replay:
-    """Evaluate run ``run_id``'s best candidate again with its seed.
+    """Evaluate run ``run_id``'s best candidate again with its seeds.
 
     ``overrides`` changes problem parameters (e.g. ``{"backend": "pybullet"}``); everything else
     is as stored with the run.
@@ -60,10 +62,26 @@ def replay_best(
     run, best = stored_best(store, run_id)
     info, params = replay_params(run, plugins, overrides)
     problem = info.factory(**params)
-    task = EvaluationTask(best.index, np.asarray(best.x), best.seed, info.factory, params)
     try:
         with adopt_problem(info.factory, params, problem):
-            outcome = evaluate_task(task)
+            outcomes = [
+                evaluate_task(
+                    EvaluationTask(e.index, np.asarray(best.x), e.seed, info.factory, params)
+                )
+                for e in best.samples
+            ]
     finally:
         problem.close()
-    return Replay(run, best, params, outcome)
+    return Replay(run, best, params, _combined(outcomes, best.aggregate))
+
+
+def _combined(outcomes: list[Outcome], aggregate: str) -> Outcome:
+    """The samples' outcomes as one: aggregated, or the first failure."""
+    failed = next((o for o in outcomes if o.fitness is None), None)
+    if failed is not None:
+        return failed
+    fitness, metrics = aggregate_samples(
+        [o.fitness for o in outcomes], [o.metrics for o in outcomes], aggregate
+    )
+    wall = sum(o.wall_time for o in outcomes)
+    return Outcome(outcomes[0].index, fitness, metrics, wall_time=wall)

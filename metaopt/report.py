@@ -34,7 +34,7 @@ def run_figures(store: RunStore, run_id: int | str, plugins: Registry) -> Figure
     run = store.run(run_id)
     title = f"Run {run.id}: {run.optimizer} on {run.problem}, seed {run.seed}"
     result = Figures({"convergence": convergence_figure(run_convergence(store, run), title)})
-    best = store.best_evaluation(run)
+    best = store.best_candidate(run)
     if best is None:
         result.note = f"run {run.id} has no successful evaluation: no figures of its best"
         return result

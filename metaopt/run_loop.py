@@ -14,8 +14,8 @@ from __future__ import annotations
 
 import math
 import signal
-import statistics
 import time
+import warnings
 from collections.abc import Iterator
 from concurrent.futures import FIRST_COMPLETED, Future, as_completed, wait
 from contextlib import contextmanager
@@ -24,7 +24,7 @@ from typing import Any, Protocol
 
 import numpy as np
 
-from metaopt.errors import ConfigError
+from metaopt.errors import ConfigError, RunFailed, SettingWarning
 from metaopt.executors import (
     EvaluationTask,
     Executor,
@@ -36,13 +36,16 @@ from metaopt.executors import (
 from metaopt.optimizer import Optimizer, OptimizerInfo
 from metaopt.params import resolve
 from metaopt.problem import Problem, ProblemInfo, Sense
+from metaopt.resampling import AGGREGATES, aggregate_samples
 from metaopt.seeding import EvaluationSeeds
 from metaopt.store import EvaluationRecord, RunRecord, RunStore
 from metaopt.versions import environment_versions
 
 CHECKPOINT_INTERVAL = 1.0
+#: A run whose first this many evaluations all failed stops as failed rather than spend its
+#: budget on a problem set up so that nothing can succeed (docs/running.md).
+ALL_FAILED_STOP = 10
 MODES = ("sync", "async")
-AGGREGATES = {"mean": statistics.fmean, "median": statistics.median}
 
 
 class Progress(Protocol):
@@ -151,6 +154,9 @@ def run(
     problem = problem_info.factory(**problem_params)
     try:
         optimizer = optimizer_info.factory(problem.space, spec.seed, **optimizer_params)
+        unfit = optimizer.budget_warning(spec.budget // spec.settings.resample)
+        if unfit is not None:
+            warnings.warn(f"{optimizer_info.name}: {unfit}", SettingWarning, stacklevel=2)
         if spec.settings.mode == "async" and not optimizer.steady_state:
             raise ConfigError(
                 f"optimizer {optimizer_info.name!r} is generational, not steady-state: it "
@@ -168,6 +174,7 @@ def run(
             settings=asdict(spec.settings),
             versions=environment_versions(),
         )
+        store.claim(run_id)
         session = _Session(run_id, spec, optimizer, problem, problem_info, store, problem_params)
         with adopt_problem(problem_info.factory, problem_params, problem):
             return session.execute(executor or SerialExecutor(), progress)
@@ -206,6 +213,7 @@ def resume(
         checkpoint = record.checkpoint or {"state": None, "told_below": 0, "told_extra": []}
         if checkpoint["state"] is not None:
             optimizer.load_state_dict(checkpoint["state"])
+        store.claim(record.id)  # refused while another live process runs it
         store.mark_running(record.id)
         session = _Session(
             record.id, spec, optimizer, problem, problem_info, store, record.problem_params
@@ -259,6 +267,7 @@ class _Session:
         self.told_below = 0  # every candidate whose evaluations all lie below this is told
         self.told_extra: set[int] = set()  # candidates told beyond told_below (async)
         self.stored = self.failed = 0
+        self.first_error: str | None = None
         self.best_score = math.inf
         self.best: tuple[float, np.ndarray, dict[str, float]] | None = None
         self.reusable: dict[int, EvaluationRecord] = {}
@@ -289,7 +298,9 @@ class _Session:
     # -- the loop --------------------------------------------------------------------------
 
     def execute(self, executor: Executor, progress: Progress | None) -> RunResult:
-        started = time.perf_counter()
+        # Starting and stopping the executor's workers (a Dask cluster: seconds) is part of the
+        # run's cost: its wall time counts both.
+        started = time.perf_counter() - executor.startup_time
         status, message = "failed", None
         if progress is not None:
             progress.start(self.total, self.stored)
@@ -299,7 +310,12 @@ class _Session:
                     self._run_sync(executor, progress)
                 else:
                     self._run_async(executor, progress)
+            if self.best is None:
+                raise RunFailed(self._why_failed())
             status = "finished"
+        except RunFailed as error:
+            message = str(error)
+            raise
         except KeyboardInterrupt:
             status, message = "interrupted", "stopped by the user (Ctrl-C or SIGTERM)"
             raise RunInterrupted(self.run_id, self.stored) from None
@@ -415,10 +431,21 @@ class _Session:
         candidate.outcomes[outcome.index % self.resample] = outcome
         self.stored += 1
         self.failed += outcome.error is not None
+        self.first_error = self.first_error or outcome.error
         self.store.add_evaluation(
             self.run_id, outcome.index, candidate.number, candidate.x, outcome.fitness,
             outcome.metrics, outcome.error, self.seeds(outcome.index), outcome.wall_time,
         )  # fmt: skip
+        if self.failed >= self.stored >= ALL_FAILED_STOP and self.stored < self.total:
+            raise RunFailed(self._why_failed() + "; stopped early")
+
+    def _why_failed(self) -> str:
+        """The reason a run ends without a result: its failures and the first error."""
+        first = f", the first with {self.first_error}" if self.first_error else ""
+        return (
+            f"run {self.run_id}: all {self.stored} evaluations failed{first} (the problem's "
+            "settings may make every evaluation fail)"
+        )
 
     def _score(self, candidate: _Candidate) -> float:
         """The optimizer's (minimizing) score of a complete candidate, +inf if any sample
@@ -426,18 +453,12 @@ class _Session:
         outcomes = candidate.outcomes
         if any(o.fitness is None for o in outcomes):
             return math.inf
-        aggregate = AGGREGATES[self.settings.aggregate]
-        fitness = (
-            outcomes[0].fitness if len(outcomes) == 1 else aggregate([o.fitness for o in outcomes])
+        fitness, metrics = aggregate_samples(
+            [o.fitness for o in outcomes], [o.metrics for o in outcomes], self.settings.aggregate
         )
         score = self.sign * fitness
         if score < self.best_score:
             self.best_score = score
-            metrics = outcomes[0].metrics if len(outcomes) == 1 else {
-                name: aggregate([o.metrics[name] for o in outcomes])
-                for name in outcomes[0].metrics
-                if all(name in o.metrics for o in outcomes)
-            }  # fmt: skip
             self.best = (fitness, candidate.x.copy(), metrics)
         return score
 

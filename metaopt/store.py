@@ -8,6 +8,8 @@ flusher, so cheap evaluations cost microseconds while none waits uncommitted for
 from __future__ import annotations
 
 import json
+import os
+import socket
 import sqlite3
 import threading
 import time
@@ -20,11 +22,28 @@ from typing import Any
 import numpy as np
 
 from metaopt.errors import StoreError
+from metaopt.resampling import aggregate_samples
 
 FORMAT_NAME = "metaopt-run-store"
 SCHEMA_VERSION = 1
 FLUSH_INTERVAL = 0.5
 DEFAULT_DB = "metaopt.db"
+#: A running run's owner renews its claim this often (seconds) ...
+HEARTBEAT_INTERVAL = 5.0
+#: ... and a claim from another host not renewed for this long is taken as dead.
+OWNER_TIMEOUT = 30.0
+HOST = socket.gethostname()
+
+#: Which process runs which run (a table of its own, created when first needed, so stores of
+#: earlier versions open unchanged): a second process is refused while the owner lives.
+_OWNER_SCHEMA = """
+CREATE TABLE IF NOT EXISTS run_owners (
+    run_id INTEGER PRIMARY KEY REFERENCES runs(id),
+    pid INTEGER NOT NULL,
+    host TEXT NOT NULL,
+    heartbeat REAL NOT NULL
+);
+"""
 
 _SCHEMA = """
 CREATE TABLE IF NOT EXISTS meta (key TEXT PRIMARY KEY, value TEXT NOT NULL);
@@ -108,6 +127,49 @@ class EvaluationRecord:
     finished_at: float
 
 
+@dataclass
+class CandidateRecord:
+    """A candidate with its stored samples and their aggregate (the run's resample and
+    aggregate settings; one sample: that evaluation as it is). ``index`` and ``seed`` are its
+    first sample's, the one a figure or video of the candidate shows."""
+
+    number: int
+    x: np.ndarray
+    fitness: float
+    metrics: dict[str, float]
+    samples: list[EvaluationRecord]
+    aggregate: str = "mean"
+
+    @property
+    def index(self) -> int:
+        return self.samples[0].index
+
+    @property
+    def seed(self) -> int:
+        return self.samples[0].seed
+
+    def describe(self) -> str:
+        """'evaluation 7' or 'candidate 3, mean of evaluations 9-11'."""
+        if len(self.samples) == 1:
+            return f"evaluation {self.index}"
+        last = self.samples[-1].index
+        return f"candidate {self.number}, {self.aggregate} of evaluations {self.index}-{last}"
+
+
+def _owner_alive(pid: int, host: str, heartbeat: float) -> bool:
+    """Whether a run's owner still runs: on this host, whether its process exists; elsewhere,
+    whether its heartbeat is recent."""
+    if host != HOST:
+        return time.time() - heartbeat < OWNER_TIMEOUT
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    except PermissionError:
+        return True
+    return True
+
+
 def _now() -> str:
     return datetime.now(timezone.utc).isoformat(timespec="seconds")
 
@@ -139,6 +201,8 @@ class RunStore:
         self._pending: list[tuple] = []
         self._stop = threading.Event()
         self._flusher: threading.Thread | None = None
+        self._owned: set[int] = set()
+        self._last_heartbeat = 0.0
 
     def _check_or_create_schema(self) -> None:
         tables = {
@@ -256,6 +320,49 @@ class RunStore:
     def _flush_loop(self) -> None:
         while not self._stop.wait(FLUSH_INTERVAL / 2):
             self.flush()
+            if self._owned and time.time() - self._last_heartbeat >= HEARTBEAT_INTERVAL:
+                self._heartbeat()
+
+    def claim(self, run_id: int) -> None:
+        """Make this process the run's owner, or StoreError naming the live process that owns
+        it; a claim whose process died (or, from another host, went silent) is taken over."""
+        with self._lock, self._transaction():
+            self._connection.execute(_OWNER_SCHEMA)
+            row = self._connection.execute(
+                "SELECT pid, host, heartbeat FROM run_owners WHERE run_id = ?", (run_id,)
+            ).fetchone()
+            if row is not None and (row[0], row[1]) != (os.getpid(), HOST) and _owner_alive(*row):
+                pid, host, heartbeat = row
+                raise StoreError(
+                    f"run {run_id} is being run by process {pid} on host {host} (alive "
+                    f"{time.time() - heartbeat:.0f} s ago); wait for it to end or stop it "
+                    f"before resuming"
+                )
+            self._connection.execute(
+                "INSERT OR REPLACE INTO run_owners VALUES (?, ?, ?, ?)",
+                (run_id, os.getpid(), HOST, time.time()),
+            )
+        self._owned.add(run_id)
+        self._last_heartbeat = time.time()
+        if self._flusher is None:
+            self._start_flusher()
+
+    def _heartbeat(self) -> None:
+        self._last_heartbeat = time.time()
+        with self._lock, self._transaction():
+            self._connection.executemany(
+                "UPDATE run_owners SET heartbeat = ? WHERE run_id = ? AND pid = ? AND host = ?",
+                [(self._last_heartbeat, run_id, os.getpid(), HOST) for run_id in self._owned],
+            )
+
+    def _release(self, run_id: int) -> None:
+        """This process no longer runs the run (caller holds the lock, in a transaction)."""
+        if run_id in self._owned:
+            self._owned.discard(run_id)
+            self._connection.execute(
+                "DELETE FROM run_owners WHERE run_id = ? AND pid = ? AND host = ?",
+                (run_id, os.getpid(), HOST),
+            )
 
     def flush(self, checkpoint: tuple[int, dict] | None = None) -> None:
         """Commit queued evaluations now; optionally with a (run_id, checkpoint) in the same
@@ -286,7 +393,8 @@ class RunStore:
     def finish_run(
         self, run_id: int, status: str, wall_time: float, message: str | None = None
     ) -> None:
-        """Flush, then record the run's end, status and an optional message."""
+        """Flush, then record the run's end, status and an optional message; this process
+        no longer owns it."""
         if status not in RUN_STATUSES:
             raise ValueError(f"unknown run status {status!r}")
         self.flush()
@@ -295,6 +403,7 @@ class RunStore:
                 "UPDATE runs SET status = ?, ended_at = ?, wall_time = ?, message = ? WHERE id = ?",
                 (status, _now(), wall_time, message, run_id),
             )
+            self._release(run_id)
 
     def close(self) -> None:
         """Stop the flusher, commit what is queued and close the database."""
@@ -303,6 +412,10 @@ class RunStore:
             self._flusher.join()
             self._flusher = None
         self.flush()
+        if self._owned:
+            with self._lock, self._transaction():
+                for run_id in list(self._owned):
+                    self._release(run_id)
         self._connection.close()
 
     def __enter__(self) -> RunStore:
@@ -365,6 +478,10 @@ class RunStore:
                 finished_at=finished,
             )
 
+    def read(self, query: str, parameters: tuple = ()) -> list[tuple]:
+        """The rows of a read-only query (for the tables that extensions of the store add)."""
+        return self._connection.execute(query, parameters).fetchall()
+
     def evaluation_counts(self, run_id: int) -> tuple[int, int]:
         """(stored evaluations, failed ones) of a run."""
         total, failed = self._connection.execute(
@@ -373,6 +490,34 @@ class RunStore:
             (run_id,),
         ).fetchone()
         return int(total), int(failed)
+
+    def best_candidate(self, run: RunRecord) -> CandidateRecord | None:
+        """The run's best candidate under its sense by the aggregate over its samples (as the
+        optimizer saw it; a candidate with a failed or missing sample does not count), or None.
+        Without resampling, the best evaluation."""
+        resample = int(run.settings.get("resample", 1))
+        if resample == 1:
+            best = self.best_evaluation(run)
+            if best is None:
+                return None
+            return CandidateRecord(best.candidate, best.x, best.fitness, best.metrics, [best])
+        by_candidate: dict[int, list[EvaluationRecord]] = {}
+        for evaluation in self.evaluations(run.id):
+            by_candidate.setdefault(evaluation.candidate, []).append(evaluation)
+        sign = -1.0 if run.sense == "maximize" else 1.0
+        best_record: CandidateRecord | None = None
+        aggregate = run.settings.get("aggregate", "mean")
+        for number, samples in by_candidate.items():
+            if len(samples) != resample or any(e.fitness is None for e in samples):
+                continue
+            fitness, metrics = aggregate_samples(
+                [e.fitness for e in samples], [e.metrics for e in samples], aggregate
+            )
+            if best_record is None or sign * fitness < sign * best_record.fitness:
+                best_record = CandidateRecord(
+                    number, samples[0].x, fitness, metrics, samples, aggregate
+                )
+        return best_record
 
     def best_evaluation(self, run: RunRecord) -> EvaluationRecord | None:
         """The best successful evaluation of a run under its sense, or None."""

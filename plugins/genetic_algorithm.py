@@ -156,6 +156,16 @@ class GeneticAlgorithm(Optimizer):
         #: Generations fully evaluated (the random initial population is the first).
         self.generations = 0
 
+    def budget_warning(self, candidates: int) -> str | None:
+        """A budget within the random first generation breeds nothing."""
+        if candidates > self.population_size:
+            return None
+        return (
+            f"population {self.population_size} is not smaller than the budget's {candidates} "
+            "candidates: the run evaluates only the random first generation, none is bred "
+            "(lower population or raise --budget)"
+        )
+
     @property
     def batch_size(self) -> int:
         """One generation."""

@@ -150,6 +150,16 @@ class HarmonySearch(Optimizer):
         self._prepared = np.empty((0, dim))
         self._prepared_start = self._prepared_end = 0
 
+    def budget_warning(self, candidates: int) -> str | None:
+        """A budget that only fills the memory is random search."""
+        if candidates > self.hms:
+            return None
+        return (
+            f"hms {self.hms} is not smaller than the budget's {candidates} candidates: the run "
+            "only fills the harmony memory at random, no harmony is improvised (lower hms or "
+            "raise --budget)"
+        )
+
     @property
     def harmony_memory(self) -> np.ndarray:
         """A copy of the filled memory rows, shape (filled, dim)."""

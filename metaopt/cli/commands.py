@@ -5,22 +5,29 @@ from __future__ import annotations
 
 import secrets
 import sys
+import warnings
 
 import click
 
 from metaopt import display
 from metaopt.cli.common import (
     build_executor,
+    check_executor_options,
+    check_output_file,
     console,
     db_option,
     errors,
+    format_option,
+    print_records,
     require_store,
     scheduling_options,
+    written_whole,
 )
 from metaopt.cli.compare import compare
 from metaopt.cli.new import new
 from metaopt.cli.report import report, write_replay_video
-from metaopt.errors import MetaoptError
+from metaopt.errors import MetaoptError, SettingWarning
+from metaopt.experiment_store import experiment_names
 from metaopt.export import FORMATS, export_run
 from metaopt.plugins import registry
 from metaopt.replay import replay_best
@@ -37,16 +44,54 @@ from metaopt.run_loop import (
 from metaopt.settings import parse_problem_settings, split_settings
 from metaopt.store import RunStore
 
+#: The largest seed: SQLite stores integers of 64 bits.
+MAX_SEED = 2**63 - 1
+
 
 class MetaoptGroup(click.Group):
-    """Turns every MetaoptError into one 'Error: ...' line and exit code 2."""
+    """Every error the user can cause is one 'Error: ...' line on stderr: a MetaoptError
+    (exit 2, or its own exit_code) and click's usage errors (exit 2, without the usage dump);
+    a SettingWarning is one 'Warning: ...' line."""
+
+    def main(self, *args, standalone_mode: bool = True, **kwargs):
+        if not standalone_mode:
+            return super().main(*args, standalone_mode=False, **kwargs)
+        try:
+            code = super().main(*args, standalone_mode=False, **kwargs)
+        except click.ClickException as error:
+            hint = ""
+            if isinstance(error, click.UsageError) and error.ctx is not None:
+                hint = f" (see '{error.ctx.command_path} --help')"
+            _error_line(f"{error.format_message()}{hint}".replace("\n", " "))
+            sys.exit(error.exit_code)
+        except click.exceptions.Abort:
+            errors.print("Aborted!")
+            sys.exit(1)
+        sys.exit(code if isinstance(code, int) else 0)
 
     def invoke(self, ctx: click.Context):
         try:
-            return super().invoke(ctx)
+            with warnings.catch_warnings():
+                warnings.showwarning = _warning_line
+                return super().invoke(ctx)
         except MetaoptError as error:
-            errors.print(f"[bold red]Error:[/] {error}", highlight=False, soft_wrap=True)
-            sys.exit(2)
+            _error_line(str(error))
+            sys.exit(getattr(error, "exit_code", 2))
+
+
+def _error_line(message: str) -> None:
+    errors.print(f"[bold red]Error:[/] {message}", highlight=False, markup=True)
+
+
+def _warning_line(message, category, filename, lineno, file=None, line=None) -> None:
+    """SettingWarnings as one line; anything else as Python shows it."""
+    if issubclass(category, SettingWarning):
+        errors.print(f"[yellow]Warning:[/] {message}", highlight=False)
+    else:
+        errors.print(
+            warnings.formatwarning(message, category, filename, lineno, line),
+            end="", markup=False, highlight=False,
+        )  # fmt: skip
 
 
 @click.group(cls=MetaoptGroup)
@@ -58,7 +103,7 @@ def main() -> None:
 @main.command("list")
 @click.argument("name", required=False)
 def list_plugins(name: str | None) -> None:
-    """Show the installed optimizers, problems and physics engines (or one of them in full)."""
+    """Show the installed optimizers, problems and physics engines (or one plugin in full)."""
     plugins = registry()
     if name is None:
         for title, kind, table in (
@@ -70,29 +115,32 @@ def list_plugins(name: str | None) -> None:
             console.print(display.plugin_overview(title, list(table.values()), sources))
         console.print("[dim]metaopt list NAME shows one in full with every parameter.[/]")
         return
-    for kind, table in (("optimizer", plugins.optimizers), ("problem", plugins.problems)):
-        if name in table:
-            info = table[name]
-            console.print(f"[bold cyan]{info.name}[/] ({kind}): {info.summary}")
-            if info.description:
-                console.print(display.reflow(info.description), markup=False)
-            if kind == "problem":
-                console.print(f"default budget: {info.default_budget} evaluations")
-            console.print(display.params_table("parameters", info.params))
-            return
-    if name in plugins.physics_backends:
-        info = plugins.physics_backends[name]
-        console.print(f"[bold cyan]{info.name}[/] (physics backend): {info.summary}")
+    kind, info = plugins.any_kind(name)  # raises with close matches of every kind
+    console.print(f"[bold cyan]{info.name}[/] ({kind}): {info.summary}")
+    if kind not in ("optimizer", "problem"):
         return
-    plugins.optimizer(name)  # raises with close matches among optimizers
-    raise AssertionError("unreachable")
+    if info.description:
+        console.print(display.reflow(info.description), markup=False)
+    if kind == "problem":
+        console.print(f"default budget: {info.default_budget} evaluations")
+    console.print(display.params_table("parameters", info.params))
 
 
 @main.command("run")
 @click.option("--optimizer", "-o", "optimizer_name", required=True, help="Optimizer name.")
 @click.option("--problem", "-p", "problem_name", required=True, help="Problem name.")
-@click.option("--budget", type=int, default=None, help="Evaluations [problem's default].")
-@click.option("--seed", type=int, default=None, help="Run seed [random, printed].")
+@click.option(
+    "--budget",
+    type=click.IntRange(min=1, max=MAX_SEED),
+    default=None,
+    help="Evaluations [problem's default].",
+)
+@click.option(
+    "--seed",
+    type=click.IntRange(min=0, max=MAX_SEED),
+    default=None,
+    help="Run seed [random, printed].",
+)
 @click.option(
     "--set",
     "settings",
@@ -129,7 +177,7 @@ def list_plugins(name: str | None) -> None:
 )
 @click.option(
     "--time-limit",
-    type=float,
+    type=click.FloatRange(min=0, min_open=True, max=1e6),
     default=None,
     help="Seconds per evaluation before it is stopped and stored as failed.",
 )
@@ -152,6 +200,7 @@ def run_command(
     db_path: str,
 ) -> None:
     """Run an optimizer on a problem, storing every evaluation."""  # fmt: skip
+    check_executor_options(executor, workers, scheduler)
     plugins = registry()
     optimizer_info = plugins.optimizer(optimizer_name)
     problem_info = plugins.problem(problem_name)
@@ -165,8 +214,6 @@ def run_command(
         problem_params=problem_params,
         settings=RunSettings(mode, batch, resample, aggregate, time_limit),
     )
-    if spec.budget < 1:
-        raise click.BadParameter(f"must be at least 1, got {spec.budget}", param_hint="--budget")
     spec.settings.check(spec.budget)
     with RunStore(db_path) as store:
         label = f"{optimizer_name} on {problem_name}"
@@ -175,7 +222,7 @@ def run_command(
             label, db_path,
             lambda progress: run(spec, optimizer_info, problem_info, store, progress, pool),
         )  # fmt: skip
-        _print_result(result, db_path, spec.seed)
+        _print_result(result, db_path, spec.seed, pool.startup_time)
 
 
 @main.command("resume")
@@ -186,6 +233,7 @@ def resume_command(
     run_id: str, executor: str | None, workers: int | None, scheduler: str | None, db_path: str
 ) -> None:
     """Continue a run that was interrupted or killed, from its last checkpoint."""
+    check_executor_options(executor, workers, scheduler)
     require_store(db_path)
     plugins = registry()
     with RunStore(db_path) as store:
@@ -198,7 +246,7 @@ def resume_command(
             label, db_path,
             lambda progress: resume(record.id, store, optimizer_info, problem_info, progress, pool),
         )  # fmt: skip
-        _print_result(result, db_path, record.seed)
+        _print_result(result, db_path, record.seed, pool.startup_time)
 
 
 def _with_progress(label: str, db_path: str, start) -> RunResult:
@@ -214,8 +262,8 @@ def _with_progress(label: str, db_path: str, start) -> RunResult:
         sys.exit(130)
 
 
-def _print_result(result: RunResult, db_path: str, seed: int) -> None:
-    console.print(display.result_table(result, str(db_path), seed))
+def _print_result(result: RunResult, db_path: str, seed: int, startup_time: float) -> None:
+    console.print(display.result_table(result, str(db_path), seed, startup_time))
     if result.failed:
         console.print(
             f"[yellow]{result.failed} evaluation(s) failed; their errors are stored "
@@ -224,33 +272,42 @@ def _print_result(result: RunResult, db_path: str, seed: int) -> None:
 
 
 @main.command("runs")
+@format_option
 @db_option
-def runs_command(db_path: str) -> None:
-    """List the runs in a store."""
+def runs_command(fmt: str, db_path: str) -> None:
+    """List the runs in a store: what ran, on which engine and settings, how far, how well."""
     require_store(db_path)
     with RunStore(db_path) as store:
         runs = store.runs()
         counts = {r.id: store.evaluation_counts(r.id) for r in runs}
         best = {}
         for r in runs:
-            record = store.best_evaluation(r)
+            record = store.best_candidate(r)
             best[r.id] = None if record is None else record.fitness
-        console.print(display.runs_table(runs, counts, best))
+        experiments = experiment_names(store)
+    if fmt == "table":
+        console.print(display.runs_table(runs, counts, best, experiments))
+    else:
+        print_records(
+            [display.run_summary(r, counts[r.id], best[r.id], experiments.get(r.id)) for r in runs],
+            fmt,
+        )
 
 
 @main.command("show")
 @click.argument("run_id")
+@format_option
 @db_option
-def show_command(run_id: str, db_path: str) -> None:
+def show_command(run_id: str, fmt: str, db_path: str) -> None:
     """Show everything stored about one run."""
     require_store(db_path)
     with RunStore(db_path) as store:
         record = store.run(run_id)
-        console.print(
-            display.run_detail(
-                record, store.evaluation_counts(record.id), store.best_evaluation(record)
-            )
-        )
+        counts, best = store.evaluation_counts(record.id), store.best_candidate(record)
+    if fmt == "table":
+        console.print(display.run_detail(record, counts, best))
+    else:
+        print_records(display.run_document(record, counts, best), fmt)
 
 
 @main.command("export")
@@ -260,12 +317,14 @@ def show_command(run_id: str, db_path: str) -> None:
 @db_option
 def export_command(run_id: str, fmt: str, output: str | None, db_path: str) -> None:
     """Write a run's evaluations as CSV or JSON."""
+    target = None if output is None else check_output_file(output, "--output")
     require_store(db_path)
     with RunStore(db_path) as store:
-        if output is None:
+        store.run(run_id)  # an unknown run is an error before any file is touched
+        if target is None:
             export_run(store, run_id, fmt, sys.stdout)
         else:
-            with open(output, "w", newline="") as handle:
+            with written_whole(target) as handle:
                 count = export_run(store, run_id, fmt, handle)
             errors.print(f"wrote {count} evaluations to {output}")
 
@@ -282,6 +341,8 @@ def replay_command(
     run_id: str, backend: str | None, settings: tuple[str, ...], video: str | None, db_path: str
 ) -> None:
     """Re-run a stored run's best candidate and compare with what was stored."""
+    if video is not None:
+        check_output_file(video, "--video", suffix=".mp4")
     require_store(db_path)
     plugins = registry()
     with RunStore(db_path) as store:
