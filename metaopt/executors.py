@@ -50,6 +50,11 @@ class Outcome:
     error: str | None = None
     wall_time: float = 0.0
 
+    @property
+    def timed_out(self) -> bool:
+        """Stopped by its time limit (the process that ran it may hold a half-done import)."""
+        return self.error is not None and self.error.startswith(EvaluationTimeout.__name__)
+
 
 class EvaluationTimeout(Exception):
     """An evaluation ran past its time limit."""
@@ -88,14 +93,22 @@ def release_problems() -> None:
         problem.close()
 
 
+def prepared_problem(task: EvaluationTask) -> Problem:
+    """The task's problem in this process, built on first use and prepared (Problem.prepare),
+    so the task's time limit counts only the evaluation itself."""
+    key = task.problem_key or problem_key(task.factory, task.params)
+    problem = _problems.get(key)
+    if problem is None:
+        problem = _problems[key] = task.factory(**task.params)
+    problem.prepare()
+    return problem
+
+
 def evaluate_task(task: EvaluationTask) -> Outcome:
     """Run one task in this process: a raised error or a non-finite fitness becomes a failure."""
-    key = task.problem_key or problem_key(task.factory, task.params)
     start = time.perf_counter()
     try:
-        problem = _problems.get(key)
-        if problem is None:
-            problem = _problems[key] = task.factory(**task.params)
+        problem = prepared_problem(task)
         with _alarm(task.time_limit):
             evaluation = problem.evaluate(task.x, task.seed)
         fitness = float(evaluation.fitness)

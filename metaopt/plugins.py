@@ -102,7 +102,9 @@ class Registry:
         hint = f" Did you mean {' or '.join(close)}?" if close else ""
         raise ConfigError(
             f"unknown plugin {name!r}.{hint} Installed: "
-            + "; ".join(f"{kind}s {', '.join(table)}" for kind, table in self.tables().items())
+            + "; ".join(
+                f"{kind}s {', '.join(table)}" for kind, table in self.tables().items() if table
+            )
         )
 
 

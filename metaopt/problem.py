@@ -51,6 +51,11 @@ class Problem(ABC):
     def evaluate(self, x: np.ndarray, seed: int) -> Evaluation:
         """Evaluate one candidate (a 1-D array in space order)."""
 
+    def prepare(self) -> None:  # noqa: B027 - optional hook, empty by default
+        """Optional: the set-up that evaluations share (importing an engine, building a model),
+        done before an evaluation's time limit starts, so that no limit counts it and no
+        import is cut short. Called before every evaluation: cheap once done."""
+
     def close(self) -> None:  # noqa: B027 - optional hook, empty by default
         """Release engines, files or other resources; called once when a run ends."""
 

@@ -1,6 +1,8 @@
 """Local worker processes that survive their workers: a dead worker's task is retried once on a
 fresh process and then failed with the reason; a task past its time limit is stopped by killing
-its worker. Each worker runs one task at a time, so a death is always traced to its task."""
+its worker, and a worker whose task its own alarm stopped is replaced too (the stop may have
+cut an import short). The limit counts from the end of the problem's set-up, which the worker
+reports. Each worker runs one task at a time, so a death is always traced to its task."""
 
 from __future__ import annotations
 
@@ -13,10 +15,19 @@ from concurrent.futures import Future
 from dataclasses import dataclass
 from multiprocessing.connection import Connection, wait
 
-from metaopt.executors import EvaluationTask, Executor, Outcome, evaluate_task, release_problems
+from metaopt.executors import (
+    EvaluationTask,
+    Executor,
+    Outcome,
+    evaluate_task,
+    prepared_problem,
+    release_problems,
+)
 
 #: How often the manager thread looks at the clock when nothing else happens (time limits).
 POLL_INTERVAL = 0.05
+#: What a worker sends when its problem is set up and the task's timed evaluation begins.
+STARTED = "started"
 
 
 def _worker_main(connection: Connection) -> None:
@@ -29,6 +40,9 @@ def _worker_main(connection: Connection) -> None:
             task = connection.recv()
             if task is None:
                 break
+            with contextlib.suppress(Exception):  # a set-up error is evaluate_task's to report
+                prepared_problem(task)
+            connection.send(STARTED)  # the time limit counts from here
             connection.send(evaluate_task(task))
     except (EOFError, OSError):
         pass
@@ -52,10 +66,11 @@ class _Worker:
         self.process.start()
         child.close()
         self.job: _Job | None = None
-        self.started = 0.0
+        #: when the job's timed evaluation began (None: its problem is still being set up)
+        self.started: float | None = None
 
     def start(self, job: _Job) -> None:
-        self.job, self.started = job, time.monotonic()
+        self.job, self.started = job, None
         self.connection.send(job.task)
 
     def kill(self) -> None:
@@ -114,7 +129,13 @@ class ProcessExecutor(Executor):
         except (EOFError, OSError):
             self._replace_dead(worker)
             return
+        if outcome == STARTED:
+            worker.started = time.monotonic()
+            return
         job, worker.job = worker.job, None
+        if outcome.timed_out:  # stopped mid-evaluation, maybe mid-import: start afresh
+            worker.kill()
+            self._pool[self._pool.index(worker)] = _Worker(self._context)
         job.future.set_result(outcome)
 
     def _replace_dead(self, worker: _Worker) -> None:
@@ -134,7 +155,7 @@ class ProcessExecutor(Executor):
     def _enforce_time_limit(self, worker: _Worker) -> None:
         job = worker.job
         limit = job.task.time_limit if job else None
-        if limit is None or time.monotonic() - worker.started <= limit:
+        if limit is None or worker.started is None or time.monotonic() - worker.started <= limit:
             return
         worker.job = None
         worker.kill()

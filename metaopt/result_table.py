@@ -57,13 +57,18 @@ class ResultTable:
         shown = [column for column in self.columns if column.in_terminal]
         table = Table(title=self.title, title_justify="left")
         for index, column in enumerate(shown):
-            table.add_column(column.header, justify="left" if index < 2 else "right")
+            justify = "left" if index < 2 else "right"
+            table.add_column(column.header, justify=justify, overflow="fold")
         for row in self.rows:
             table.add_row(*(column.render(row) for column in shown))
         return table
+
+    def to_records(self) -> list[Row]:
+        """Every field of every row (None where missing), for JSON."""
+        return [{name: row.get(name) for name in self.fields} for row in self.rows]
 
     def write_csv(self, handle: TextIO) -> None:
         """Every field of every row at full precision (empty where missing)."""
         writer = csv.DictWriter(handle, fieldnames=self.fields, lineterminator="\n")
         writer.writeheader()
-        writer.writerows({name: row.get(name) for name in self.fields} for row in self.rows)
+        writer.writerows(self.to_records())

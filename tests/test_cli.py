@@ -54,8 +54,8 @@ def test_list_shows_every_plugin_and_one_in_full(tmp_path):
         (["run", "-o", "hs", "-p", "sphere", "--set", "hmcx=1"], "has a parameter 'hmcx'"),
         (["run", "-o", "hs", "-p", "sphere", "--set", "dim=ten"], "cannot read 'ten'"),
         (["run", "-o", "hs", "-p", "sphere", "--set", "dim"], "--set expects NAME=VALUE"),
-        (["run", "-o", "hs", "-p", "sphere", "--budget", "0"], "must be at least 1"),
-        (["list", "nonesuch"], "unknown optimizer 'nonesuch'"),
+        (["run", "-o", "hs", "-p", "sphere", "--budget", "0"], "0 is not in the range 1<=x"),
+        (["list", "nonesuch"], "unknown plugin 'nonesuch'"),
         (["show", "3"], "no run store at metaopt.db"),
     ],
 )

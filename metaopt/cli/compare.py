@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import json
 import sys
 from collections import Counter
 from pathlib import Path
@@ -9,7 +10,17 @@ from pathlib import Path
 import click
 
 from metaopt import display
-from metaopt.cli.common import build_executor, console, db_option, errors, scheduling_options
+from metaopt.cli.common import (
+    build_executor,
+    check_executor_options,
+    check_output_file,
+    console,
+    db_option,
+    errors,
+    format_option,
+    scheduling_options,
+    written_whole,
+)
 from metaopt.comparison import compare as compare_cells
 from metaopt.errors import ConfigError
 from metaopt.experiment import Experiment, experiment_from_flags, load_experiment
@@ -76,6 +87,7 @@ DEFAULT_SEEDS = 5
     default=None,
     help="Write the transfer table as CSV (with --transfer).",
 )
+@format_option
 @scheduling_options
 @db_option
 def compare(
@@ -90,6 +102,7 @@ def compare(
     transfer: bool,
     csv_path: str | None,
     transfer_csv_path: str | None,
+    fmt: str,
     executor: str | None,
     workers: int | None,
     scheduler: str | None,
@@ -97,6 +110,11 @@ def compare(
 ) -> None:
     """Run optimizers x problem settings x seeds (skipping finished runs, resuming unfinished
     ones) and compare them: an experiment file (TOML, docs/comparing.md) or -o A -o B -p P."""
+    check_executor_options(executor, workers, scheduler)
+    outputs = {"--csv": csv_path, "--transfer-csv": transfer_csv_path}
+    for option, path in outputs.items():
+        if path is not None:  # checked before any run: a bad path must not cost the runs
+            check_output_file(path, option)
     plugins = registry()
     flags = dict(optimizers=optimizers, problem=problem, seeds=seeds, budget=budget,
                  settings=settings, target=target, name=name)  # fmt: skip
@@ -117,14 +135,15 @@ def compare(
             )
             sys.exit(130)
         counts = Counter(d.action for d in done)
-        console.print(
+        summary = console if fmt == "table" else errors  # stdout stays pure CSV or JSON
+        summary.print(
             f"experiment {experiment.name!r}: {counts['ran']} run(s) ran, {counts['resumed']} "
             f"resumed, {counts['skipped']} already finished (in {db_path})"
         )
-        _show(compare_cells(experiment, store, plugins), csv_path)
+        _show(compare_cells(experiment, store, plugins), csv_path, fmt)
         if transfer:
             transfers = replay_on_other_engines(experiment, store, plugins)
-            _show(transfer_table(experiment, transfers, plugins), transfer_csv_path)
+            _show(transfer_table(experiment, transfers, plugins), transfer_csv_path, fmt)
 
 
 def _experiment(path: str | None, flags: dict, plugins: Registry) -> Experiment:
@@ -149,9 +168,16 @@ def _experiment(path: str | None, flags: dict, plugins: Registry) -> Experiment:
     )
 
 
-def _show(table: ResultTable, csv_path: str | None) -> None:
-    console.print(table.to_rich())
+def _show(table: ResultTable, csv_path: str | None, fmt: str) -> None:
+    """The table on stdout in the format asked for, and as CSV into csv_path if given."""
+    if fmt == "table":
+        console.print(table.to_rich())
+    elif fmt == "csv":
+        table.write_csv(sys.stdout)
+    else:
+        json.dump(table.to_records(), sys.stdout, indent=1)
+        sys.stdout.write("\n")
     if csv_path is not None:
-        with Path(csv_path).open("w", newline="") as handle:
+        with written_whole(Path(csv_path)) as handle:
             table.write_csv(handle)
         errors.print(f"wrote {len(table.rows)} rows to {csv_path}")

@@ -139,6 +139,11 @@ class NaoWalk(Problem):
         """The episode runner on the first (for one backend: the only) engine."""
         return self.runner_on(self.engines[0])
 
+    def prepare(self) -> None:
+        """Import every engine and build its model (once per process)."""
+        for engine in self.engines:
+            self.runner_on(engine)
+
     def runner_on(self, engine: str) -> EpisodeRunner:
         """The episode runner on one of this problem's engines, built on first use (once per
         process)."""

@@ -9,12 +9,13 @@ render() uses PyBullet's built-in software renderer (TinyRenderer: no OpenGL nee
 from __future__ import annotations
 
 import os
+import sys
 import tempfile
+from types import ModuleType
 from typing import Any
 from xml.sax.saxutils import quoteattr
 
 import numpy as np
-import pybullet
 
 from metaopt.errors import EvaluationError
 from metaopt.physics import (
@@ -31,6 +32,29 @@ from metaopt.physics import (
     servo_velocities,
 )
 from metaopt_problems.physics.pybullet_backend import DEFAULT_SUBSTEPS
+
+
+def _import_quietly() -> ModuleType:
+    """Import PyBullet without the 'pybullet build time: ...' line its C code prints on the
+    process's standard output at import: file descriptors 1 and 2 point at /dev/null meanwhile
+    (Python's buffers are flushed first, so nothing of ours is lost)."""
+    sys.stdout.flush()
+    sys.stderr.flush()
+    saved = [os.dup(1), os.dup(2)]
+    try:
+        with open(os.devnull, "w") as devnull:
+            os.dup2(devnull.fileno(), 1)
+            os.dup2(devnull.fileno(), 2)
+            import pybullet
+
+            return pybullet
+    finally:
+        for descriptor, copy in zip((1, 2), saved):
+            os.dup2(copy, descriptor)
+            os.close(copy)
+
+
+pybullet = _import_quietly()
 
 
 def _vec(values) -> str:
