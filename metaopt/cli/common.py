@@ -107,7 +107,7 @@ def check_executor_options(name: str | None, workers: int | None, scheduler: str
 def check_output_file(path: str, option: str, suffix: str | None = None) -> Path:
     """ConfigError unless ``path`` can be written as a new or replaced file: not a directory,
     its folder exists and is writable, and it ends in ``suffix`` when one is required. Checked
-    before any work, so a bad path never costs a run; nothing is created here."""
+    before any work, so a bad path never costs a run; nothing is left behind here."""
     target = Path(path)
     if path.endswith(("/", os.sep)) or target.is_dir():
         raise ConfigError(f"{option} {path} is a directory; give a file path")
@@ -116,8 +116,13 @@ def check_output_file(path: str, option: str, suffix: str | None = None) -> Path
     folder = target.parent
     if not folder.is_dir():
         raise ConfigError(f"{option} {path}: folder {folder} does not exist; create it first")
-    if not os.access(folder, os.W_OK) or (target.exists() and not os.access(target, os.W_OK)):
-        raise ConfigError(f"{option} {path}: no permission to write there")
+    try:  # the one sure test of a folder (permissions, read-only mounts, /proc): try it
+        with tempfile.TemporaryFile(dir=folder):
+            pass
+    except OSError as error:
+        raise ConfigError(f"{option} {path}: cannot write in {folder} ({error.strerror})") from None
+    if target.exists() and not os.access(target, os.W_OK):
+        raise ConfigError(f"{option} {path}: no permission to write that file")
     return target
 
 

@@ -121,12 +121,13 @@ def compare(
     experiment = _experiment(experiment_file, flags, plugins)
     if transfer_csv_path is not None and not transfer:
         raise ConfigError("--transfer-csv writes the transfer table: add --transfer")
+    shown = console if fmt == "table" else errors  # stdout stays pure CSV or JSON
     with ExperimentStore(db_path) as store:
         try:
             done = run_experiment(
                 experiment, store, plugins,
                 lambda: build_executor(executor, workers, scheduler),
-                lambda label: display.RichProgress(console, label),
+                lambda label: display.RichProgress(shown, label),
             )  # fmt: skip
         except RunInterrupted as stop:
             errors.print(
@@ -135,8 +136,7 @@ def compare(
             )
             sys.exit(130)
         counts = Counter(d.action for d in done)
-        summary = console if fmt == "table" else errors  # stdout stays pure CSV or JSON
-        summary.print(
+        shown.print(
             f"experiment {experiment.name!r}: {counts['ran']} run(s) ran, {counts['resumed']} "
             f"resumed, {counts['skipped']} already finished (in {db_path})"
         )

@@ -1,0 +1,303 @@
+"""The cases of issue 18 through the real `metaopt` command: right numbers for resampled runs,
+one line (exit 2) for bad input checked before any work, failing runs, run ownership, complete
+output for files and pipes, suggestions, and warnings for settings that cannot work."""
+
+from __future__ import annotations
+
+import csv
+import io
+import json
+import os
+import signal
+import sqlite3
+import statistics
+import subprocess
+import sys
+import time
+from collections import defaultdict
+
+import pytest
+
+from tests.conftest import metaopt_cli
+
+BASIC = {"METAOPT_LOAD_PLUGINS": "harmony_search,genetic_algorithm,random_search,functions"}
+#: nao-walk kept short: 1 s episodes after a 0.2 s lock phase.
+SHORT_WALK = ("--set", "duration=1", "--set", "lock=0.2")
+
+
+def one_error_line(done: subprocess.CompletedProcess, *needles: str) -> str:
+    """The single stderr line of a refused command (exit 2, no traceback), holding needles."""
+    assert done.returncode == 2, done.stderr
+    lines = done.stderr.strip().splitlines()
+    assert len(lines) == 1 and lines[0].startswith("Error: "), done.stderr
+    assert "Traceback" not in done.stdout + done.stderr
+    for needle in needles:
+        assert needle in lines[0], lines[0]
+    return lines[0]
+
+
+@pytest.fixture(scope="module")
+def noisy_run(tmp_path_factory):
+    """A resampled run of a noisy problem: nao-walk with noise, 3 samples per candidate."""
+    folder = tmp_path_factory.mktemp("noisy")
+    done = metaopt_cli(
+        "run", "-o", "hs", "-p", "nao-walk", "--budget", "36", "--resample", "3", "--seed", "1",
+        "--set", "noise=1", "--set", "hms=4", *SHORT_WALK, cwd=folder,
+    )  # fmt: skip
+    assert done.returncode == 0, done.stderr
+    return folder, done
+
+
+def test_a_resampled_run_reports_its_best_candidates_aggregate_everywhere(noisy_run):
+    folder, done = noisy_run
+    exported = metaopt_cli("export", "1", cwd=folder)
+    rows = list(csv.DictReader(io.StringIO(exported.stdout)))
+    samples = defaultdict(list)
+    for row in rows:
+        samples[int(row["candidate"])].append(float(row["fitness"]))
+    assert len(samples) == 12 and all(len(s) == 3 for s in samples.values())
+    best_mean = max(statistics.fmean(s) for s in samples.values())
+    luckiest = max(float(row["fitness"]) for row in rows)
+    assert luckiest > best_mean  # the noise makes a single sample's best a lucky one
+
+    shown = json.loads(metaopt_cli("show", "1", "--format", "json", cwd=folder).stdout)
+    assert shown["best"]["fitness"] == pytest.approx(best_mean, rel=1e-12)
+    assert len(shown["best"]["evaluations"]) == 3
+    assert shown["settings"]["resample"] == 3 and shown["settings"]["aggregate"] == "mean"
+    listed = json.loads(metaopt_cli("runs", "--format", "json", cwd=folder).stdout)
+    assert listed[0]["best"] == pytest.approx(best_mean, rel=1e-12)
+    assert listed[0]["settings"] == "sync, resample 3 (mean)"
+    assert f"{best_mean:.6g}" in done.stdout  # the run's own summary agrees
+
+    replayed = metaopt_cli("replay", "1", cwd=folder)
+    assert replayed.returncode == 0, replayed.stderr
+    assert "mean of evaluations" in replayed.stdout
+    fitness_row = next(line for line in replayed.stdout.splitlines() if "fitness" in line)
+    assert fitness_row.count(f"{best_mean:.6g}") == 2  # stored and replayed: the same mean
+
+    as_json = json.loads(metaopt_cli("export", "1", "--format", "json", cwd=folder).stdout)
+    assert as_json["run"]["settings"]["resample"] == 3
+    assert [e["candidate"] for e in as_json["evaluations"][:6]] == [0, 0, 0, 1, 1, 1]
+
+
+def test_compare_medians_use_the_candidates_aggregate(tmp_path):
+    experiment = tmp_path / "noisy.toml"
+    experiment.write_text(
+        'name = "noisy"\nproblem = "nao-walk"\nseeds = [1]\n'
+        "[problem_settings]\nnoise = 1.0\nduration = 1.0\nlock = 0.2\n"
+        '[[optimizers]]\nname = "hs"\nbudget = 36\nparams = { hms = 4 }\n'
+        "settings = { resample = 3 }\n"
+    )
+    done = metaopt_cli("compare", str(experiment), "--format", "json", cwd=tmp_path)
+    assert done.returncode == 0, done.stderr
+    rows = json.loads(done.stdout)
+    shown = json.loads(metaopt_cli("show", "1", "--format", "json", cwd=tmp_path).stdout)
+    assert rows[0]["fitness_median"] == pytest.approx(shown["best"]["fitness"], rel=1e-12)
+
+
+def test_a_run_whose_evaluations_all_fail_stops_and_says_why(tmp_path):
+    done = metaopt_cli(
+        "run", "-o", "hs", "-p", "nao-walk", "--budget", "200", "--seed", "1",
+        "--set", "servo_gain=1e9", "--set", "duration=4", cwd=tmp_path,
+    )  # fmt: skip
+    assert done.returncode == 1
+    line = done.stderr.strip().splitlines()[-1]
+    assert "all 10 evaluations failed" in line and "fell during the lock phase" in line
+    assert "Traceback" not in done.stderr
+    shown = metaopt_cli("show", "1", cwd=tmp_path)
+    assert "failed (run 1: all 10 evaluations failed" in shown.stdout.replace("\n", " ")
+
+
+@pytest.mark.parametrize(
+    ("args", "needles"),
+    [
+        (["--seed", "-1"], ["--seed", "-1 is not in the range 0<=x"]),
+        (["--seed", "99999999999999999999999"], ["--seed", "0<=x<=9223372036854775807"]),
+        (["--scheduler", "http://127.0.0.1:8799"], ["not a Dask scheduler address", "tcp://"]),
+        (["--workers", "2", "--executor", "serial"], ["--executor serial", "process"]),
+        (["--time-limit", "0"], ["--time-limit", "0<x"]),
+    ],
+)
+def test_run_refuses_bad_options_in_one_line_before_storing(tmp_path, args, needles):
+    done = metaopt_cli("run", "-o", "hs", "-p", "sphere", *args, cwd=tmp_path, env=BASIC)
+    one_error_line(done, *needles)
+    assert not (tmp_path / "metaopt.db").exists()
+
+
+@pytest.fixture(scope="module")
+def sphere_store(tmp_path_factory):
+    folder = tmp_path_factory.mktemp("sphere")
+    done = metaopt_cli("run", "-o", "hs", "-p", "sphere", "--budget", "50", "--seed", "2",
+                       cwd=folder, env=BASIC)  # fmt: skip
+    assert done.returncode == 0, done.stderr
+    return folder
+
+
+def _snapshot(folder) -> dict:
+    return {p.name: p.stat().st_mtime_ns for p in folder.iterdir()}
+
+
+@pytest.mark.parametrize(
+    ("args", "needles"),
+    [
+        (["replay", "1", "--video", "/nonexistent/dir/w.mp4"], ["folder", "does not exist"]),
+        (["replay", "1", "--video", "w.gif"], ["only .mp4 files"]),
+        (["replay", "1", "--video", "newdir/"], ["is a directory"]),
+        (["export", "1", "--output", "/nonexistent/dir/x.csv"], ["does not exist"]),
+        (["export", "1", "--output", "."], ["directory"]),
+        (["export", "9", "--output", "x.csv"], ["no run 9"]),
+        (
+            ["compare", "-o", "hs", "-p", "sphere", "--csv", "/nonexistent/dir/x.csv"],
+            ["--csv", "does not exist"],
+        ),
+    ],
+)
+def test_output_paths_are_checked_before_any_work(sphere_store, args, needles):
+    before = _snapshot(sphere_store)
+    started = time.perf_counter()
+    done = metaopt_cli(*args, cwd=sphere_store, env=BASIC)
+    one_error_line(done, *needles)
+    assert time.perf_counter() - started < 20  # refused up front, not after running
+    assert _snapshot(sphere_store) == before  # no file left behind, the store untouched
+
+
+def test_an_unwritable_folder_is_refused(sphere_store):
+    done = metaopt_cli("export", "1", "--output", "/proc/x.csv", cwd=sphere_store)
+    one_error_line(done, "--output /proc/x.csv: cannot write in /proc")
+
+
+def test_export_to_a_file_is_whole(sphere_store):
+    done = metaopt_cli("export", "1", "--output", "whole.csv", cwd=sphere_store, env=BASIC)
+    assert done.returncode == 0, done.stderr
+    rows = list(csv.DictReader((sphere_store / "whole.csv").open()))
+    assert len(rows) == 50 and "candidate" in rows[0]
+    assert not [p for p in sphere_store.iterdir() if p.name.startswith(".whole.csv")]
+    (sphere_store / "whole.csv").unlink()
+
+
+def test_tables_for_a_pipe_are_complete_at_any_width(sphere_store):
+    narrow = {**BASIC, "COLUMNS": "40"}
+    listing = metaopt_cli("runs", cwd=sphere_store, env=narrow)
+    assert "…" not in listing.stdout and "finished" in listing.stdout
+    assert "sphere" in listing.stdout and "sync" in listing.stdout  # settings tell runs apart
+    shown = metaopt_cli("show", "1", cwd=sphere_store, env=narrow)
+    assert "…" not in shown.stdout and "settings" in shown.stdout
+    as_csv = metaopt_cli("runs", "--format", "csv", cwd=sphere_store, env=narrow)
+    row = next(csv.DictReader(io.StringIO(as_csv.stdout)))
+    assert row["problem"] == "sphere" and row["evaluations"] == "50"
+
+
+def test_compare_table_at_80_columns_is_complete(tmp_path):
+    done = metaopt_cli(
+        "compare", "-o", "hs", "-o", "random", "-p", "sphere", "--seeds", "2", "--budget", "40",
+        cwd=tmp_path, env={**BASIC, "COLUMNS": "80"},
+    )  # fmt: skip
+    assert done.returncode == 0, done.stderr
+    assert "…" not in done.stdout and "rank-sum" in done.stdout
+    as_csv = metaopt_cli("compare", "-o", "hs", "-o", "random", "-p", "sphere", "--seeds", "2",
+                         "--budget", "40", "--format", "csv", cwd=tmp_path, env=BASIC)  # fmt: skip
+    rows = list(csv.DictReader(io.StringIO(as_csv.stdout)))
+    assert [r["optimizer"] for r in rows] == ["hs", "random"]
+
+
+@pytest.mark.parametrize(
+    ("args", "env", "needles"),
+    [
+        (["list", "sphre"], BASIC, ["unknown plugin 'sphre'", "'sphere' (problem)"]),
+        (["run", "-o", "HS", "-p", "sphere"], BASIC, ["Did you mean 'hs'?"]),
+        (
+            ["list"],
+            {"METAOPT_LOAD_PLUGINS": "hs,sphere"},
+            ["'hs', 'sphere'", "entry-point names", "harmony_search"],
+        ),
+    ],
+)
+def test_names_get_suggestions(tmp_path, args, env, needles):
+    one_error_line(metaopt_cli(*args, cwd=tmp_path, env=env), *needles)
+
+
+def test_list_shows_an_executor(tmp_path):
+    done = metaopt_cli("list", "process", cwd=tmp_path)
+    assert done.returncode == 0 and "process (executor)" in done.stdout
+
+
+@pytest.mark.parametrize(
+    ("args", "warning"),
+    [
+        (["-o", "hs", "--budget", "10"], "hms 20 is not smaller than the budget's 10"),
+        (["-o", "ga", "--budget", "30"], "population 50 is not smaller than the budget's 30"),
+    ],
+)
+def test_settings_that_cannot_work_as_meant_are_warned_in_one_line(tmp_path, args, warning):
+    done = metaopt_cli("run", *args, "-p", "sphere", "--seed", "1", cwd=tmp_path, env=BASIC)
+    assert done.returncode == 0, done.stderr
+    warnings = [line for line in done.stderr.splitlines() if line.startswith("Warning: ")]
+    assert len(warnings) == 1 and warning in warnings[0], done.stderr
+
+
+@pytest.mark.skipif((os.cpu_count() or 1) > 2, reason="warns of more workers than cores")
+def test_more_workers_than_cores_is_warned_in_one_line(tmp_path):
+    env = {"METAOPT_LOAD_PLUGINS": "harmony_search,functions,executors"}
+    done = metaopt_cli("run", "-o", "hs", "-p", "sphere", "--budget", "30", "--workers", "3",
+                       "--executor", "process", cwd=tmp_path, env=env)  # fmt: skip
+    assert done.returncode == 0, done.stderr
+    warnings = [line for line in done.stderr.splitlines() if line.startswith("Warning: ")]
+    assert len(warnings) == 1 and f"--workers 3 on {os.cpu_count()} cores" in warnings[0]
+
+
+def test_pybullet_prints_no_build_time_line(tmp_path):
+    done = subprocess.run(
+        [sys.executable, "-c", "import metaopt_problems.physics.pybullet_engine"],
+        capture_output=True, text=True, check=True,
+    )  # fmt: skip
+    assert "build time" not in done.stdout + done.stderr
+
+
+def _wait_for_running_run(db, seconds: float = 60) -> None:
+    deadline = time.monotonic() + seconds
+    while time.monotonic() < deadline:
+        if db.exists():
+            with sqlite3.connect(db) as connection:
+                try:
+                    owners = connection.execute("SELECT COUNT(*) FROM run_owners").fetchone()[0]
+                except sqlite3.OperationalError:
+                    owners = 0
+            if owners:
+                return
+        time.sleep(0.2)
+    raise AssertionError("the run never started")
+
+
+def test_a_live_run_cannot_be_resumed_twice_but_a_dead_ones_can(tmp_path):
+    env = {**os.environ, **BASIC}
+    command = [sys.executable, "-m", "metaopt"]
+    owner = subprocess.Popen(
+        [*command, "run", "-o", "random", "-p", "sphere", "--budget", "100000000", "--seed", "1",
+         "--set", "dim=2"],
+        cwd=tmp_path, env=env, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL,
+    )  # fmt: skip
+    try:
+        _wait_for_running_run(tmp_path / "metaopt.db")
+        refused = metaopt_cli("resume", "1", cwd=tmp_path, env=BASIC)
+        one_error_line(refused, f"process {owner.pid} on host", "run 1 is being run")
+    finally:
+        owner.kill()
+        owner.wait()
+    with sqlite3.connect(tmp_path / "metaopt.db") as connection:
+        stored = connection.execute("SELECT COUNT(*) FROM evaluations").fetchone()[0]
+    second = subprocess.Popen(
+        [*command, "resume", "1"], cwd=tmp_path, env=env, stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE, text=True,
+    )  # fmt: skip
+    deadline = time.monotonic() + 60
+    while time.monotonic() < deadline:  # until the resumed run stores evaluations of its own
+        with sqlite3.connect(tmp_path / "metaopt.db") as connection:
+            owner_pid = connection.execute("SELECT pid FROM run_owners").fetchone()
+            now = connection.execute("SELECT COUNT(*) FROM evaluations").fetchone()[0]
+        if owner_pid == (second.pid,) and now > stored:
+            break
+        time.sleep(0.2)
+    assert owner_pid == (second.pid,) and now > stored  # the dead owner's claim taken over
+    second.send_signal(signal.SIGTERM)
+    _, err = second.communicate(timeout=60)
+    assert second.returncode == 130 and "Resume with: metaopt resume 1" in err
