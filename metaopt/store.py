@@ -192,9 +192,9 @@ class RunStore:
             self._connection = sqlite3.connect(
                 self.path, timeout=30.0, check_same_thread=False, isolation_level=None
             )
+            self._check_or_create_schema()  # first: a foreign database is left as it was
             self._connection.execute("PRAGMA journal_mode=WAL")
             self._connection.execute("PRAGMA synchronous=NORMAL")
-            self._check_or_create_schema()
         except sqlite3.DatabaseError as error:
             raise StoreError(f"cannot use {self.path} as a run store: {error}") from None
         self._lock = threading.Lock()
@@ -437,6 +437,10 @@ class RunStore:
             run_id = int(run_id)
         except ValueError:
             raise StoreError(f"run id must be a number, got {run_id!r}") from None
+        if not 0 < run_id < 2**63:
+            raise StoreError(
+                f"run id must be a positive number (as `metaopt runs` lists), got {run_id}"
+            )
         cursor = self._connection.execute("SELECT * FROM runs WHERE id = ?", (run_id,))
         row = cursor.fetchone()
         if row is None:

@@ -8,6 +8,7 @@ import sys
 import warnings
 
 import click
+from rich.markup import escape
 
 from metaopt import display
 from metaopt.cli.common import (
@@ -62,7 +63,7 @@ class MetaoptGroup(click.Group):
             hint = ""
             if isinstance(error, click.UsageError) and error.ctx is not None:
                 hint = f" (see '{error.ctx.command_path} --help')"
-            _error_line(f"{error.format_message()}{hint}".replace("\n", " "))
+            _error_line(f"{error.format_message()}{hint}")
             sys.exit(error.exit_code)
         except click.exceptions.Abort:
             errors.print("Aborted!")
@@ -80,13 +81,15 @@ class MetaoptGroup(click.Group):
 
 
 def _error_line(message: str) -> None:
-    errors.print(f"[bold red]Error:[/] {message}", highlight=False, markup=True)
+    """'Error: message' on one line, the message as it is (never read as rich markup)."""
+    text = " ".join(message.splitlines())
+    errors.print(f"[bold red]Error:[/] {escape(text)}", highlight=False)
 
 
 def _warning_line(message, category, filename, lineno, file=None, line=None) -> None:
     """SettingWarnings as one line; anything else as Python shows it."""
     if issubclass(category, SettingWarning):
-        errors.print(f"[yellow]Warning:[/] {message}", highlight=False)
+        errors.print(f"[yellow]Warning:[/] {escape(str(message))}", highlight=False)
     else:
         errors.print(
             warnings.formatwarning(message, category, filename, lineno, line),

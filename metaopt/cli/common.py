@@ -28,6 +28,8 @@ errors = Console(stderr=True, soft_wrap=True)
 #: Dask scheduler addresses: SCHEME://HOST:PORT for Dask's own schemes, or HOST:PORT (tcp).
 SCHEDULER_ADDRESS = re.compile(r"((tcp|tls|ucx|inproc)://)?[^\s/:]+(:\d+)?")
 
+#: More local workers than this is a typing slip, not a machine.
+MAX_WORKERS = 1024
 OUTPUT_FORMATS = ("table", "csv", "json")
 format_option = click.option(
     "--format",
@@ -55,7 +57,7 @@ def scheduling_options(command):
         click.option("--executor", default=None,
                      help="serial, process or dask (or a plugin's) [serial; process with "
                           "--workers > 1; dask with --scheduler]"),
-        click.option("--workers", type=click.IntRange(min=1), default=None,
+        click.option("--workers", type=click.IntRange(min=1, max=MAX_WORKERS), default=None,
                      help="Parallel evaluations [all cores for process/dask]."),
         click.option("--scheduler", default=None, metavar="tcp://HOST:PORT",
                      help="Join this Dask scheduler (implies --executor dask)."),
@@ -95,6 +97,8 @@ def check_executor_options(name: str | None, workers: int | None, scheduler: str
             f"--scheduler {scheduler!r} is not a Dask scheduler address; accepted: "
             "tcp://HOST:PORT (or tls://, ucx://, inproc://) or HOST:PORT"
         )
+    if name is not None:
+        registry().executor(name)  # an unknown name, with the installed ones
     if scheduler and name not in (None, "dask"):
         raise ConfigError(f"--scheduler is for the dask executor, not {name!r}")
     if name == "serial" and workers is not None and workers > 1:
@@ -116,14 +120,30 @@ def check_output_file(path: str, option: str, suffix: str | None = None) -> Path
     folder = target.parent
     if not folder.is_dir():
         raise ConfigError(f"{option} {path}: folder {folder} does not exist; create it first")
-    try:  # the one sure test of a folder (permissions, read-only mounts, /proc): try it
+    _check_writable(folder, option, path)
+    if target.exists() and not os.access(target, os.W_OK):
+        raise ConfigError(f"{option} {path}: no permission to write that file")
+    return target
+
+
+def check_output_folder(path: Path, option: str) -> None:
+    """ConfigError unless ``path`` is, or can be made, a folder to write files in: not a file,
+    and its nearest existing ancestor a folder that takes files. Nothing is left behind."""
+    if path.exists() and not path.is_dir():
+        raise ConfigError(f"{option} {path} is a file; give a folder")
+    existing = next(p for p in (path, *path.parents) if p.exists())
+    if not existing.is_dir():
+        raise ConfigError(f"{option} {path}: {existing} is a file, not a folder")
+    _check_writable(existing, option, path)
+
+
+def _check_writable(folder: Path, option: str, path: Path | str) -> None:
+    """The one sure test of a folder (permissions, read-only mounts, /proc): write in it."""
+    try:
         with tempfile.TemporaryFile(dir=folder):
             pass
     except OSError as error:
         raise ConfigError(f"{option} {path}: cannot write in {folder} ({error.strerror})") from None
-    if target.exists() and not os.access(target, os.W_OK):
-        raise ConfigError(f"{option} {path}: no permission to write that file")
-    return target
 
 
 @contextmanager

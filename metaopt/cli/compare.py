@@ -32,6 +32,8 @@ from metaopt.run_loop import RunInterrupted
 from metaopt.transfer import replay_on_other_engines, transfer_table
 
 DEFAULT_SEEDS = 5
+#: More seeds than this is a typing slip: a compare runs one run per seed and cell.
+MAX_SEEDS = 10_000
 
 
 @click.command("compare")
@@ -46,13 +48,13 @@ DEFAULT_SEEDS = 5
 @click.option("--problem", "-p", "problem", default=None, help="Flags form: the problem.")
 @click.option(
     "--seeds",
-    type=click.IntRange(min=1),
+    type=click.IntRange(min=1, max=MAX_SEEDS),
     default=None,
     help=f"Flags form: seeds 1..N [{DEFAULT_SEEDS}].",
 )
 @click.option(
     "--budget",
-    type=click.IntRange(min=1),
+    type=click.IntRange(min=1, max=2**63 - 1),
     default=None,
     help="Flags form: evaluations per run [the problem's default].",
 )

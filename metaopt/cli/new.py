@@ -6,6 +6,7 @@ from pathlib import Path
 
 import click
 
+from metaopt.cli.common import check_output_folder
 from metaopt.scaffold import KINDS, create_plugin, plugin_names
 
 
@@ -20,6 +21,8 @@ from metaopt.scaffold import KINDS, create_plugin, plugin_names
 )
 def new(kind: str, name: str, directory: Path | None) -> None:
     """Write a plugin package for a new optimizer or problem: code, tests, README."""
+    if directory is not None:
+        check_output_folder(directory, "--directory")
     target = create_plugin(kind, name, directory)
     names = plugin_names(name)
     click.echo(

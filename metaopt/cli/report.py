@@ -10,7 +10,7 @@ from typing import Any
 
 import click
 
-from metaopt.cli.common import db_option, require_store
+from metaopt.cli.common import check_output_folder, db_option, require_store
 from metaopt.convergence import GROUP_BY
 from metaopt.plugins import registry
 from metaopt.store import RunStore
@@ -38,13 +38,14 @@ def report(run_ids: tuple[str, ...], out_dir: Path | None, group_by: str, db_pat
     drift, torso height); or, for several runs, median and quartile bands of their best so far."""
     from metaopt.report import comparison_figures, run_figures, write_figures
 
+    default = f"report-{run_ids[0]}" if len(run_ids) == 1 else "report-compare"
+    check_output_folder(out_dir or Path(default), "--out")
     require_store(db_path)
     with RunStore(db_path) as store:
         if len(run_ids) == 1:
             figures = run_figures(store, run_ids[0], registry())
         else:
             figures = comparison_figures(store, list(run_ids), group_by)
-    default = f"report-{run_ids[0]}" if len(run_ids) == 1 else "report-compare"
     paths = write_figures(figures, out_dir or Path(default))
     for path in paths:
         click.echo(f"wrote {path}")

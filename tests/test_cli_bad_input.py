@@ -1,0 +1,312 @@
+"""Generated bad input for every command and option of `metaopt`, run in process through
+click's CliRunner (the same code as the console script, without a process per case): wrong
+types, out-of-range, empty, huge and negative values, unknown names, and paths that are
+folders, missing, unwritable or foreign files. Each must be refused with exit code 2 and one
+'Error:' line on stderr that names what was wrong, with no traceback, leaving the store and
+every file in the working folder as they were."""
+
+from __future__ import annotations
+
+import hashlib
+import sqlite3
+import string
+from pathlib import Path
+
+import pytest
+from click.testing import CliRunner
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
+
+from metaopt.cli import main
+
+MAX_INT64 = 2**63 - 1
+#: Characters of generated names and values: letters, digits, punctuation that means something
+#: to a shell, to rich markup ('[', ']') or to paths, and whitespace (a newline included).
+ALPHABET = string.ascii_letters + string.digits + "-_.:/=[]'\" \n"
+
+FOREIGN_TEXT = "notes.txt"
+FOREIGN_SQLITE = "other.db"
+FOLDER = "folder"
+BAD_FILE_PATHS = [FOLDER, f"{FOLDER}/", "missing/dir/out.csv", "/proc/metaopt-out.csv"]
+BAD_FOLDER_PATHS = [FOREIGN_TEXT, f"{FOREIGN_TEXT}/sub", "/proc/metaopt-out"]
+BAD_STORES = [FOLDER, FOREIGN_TEXT, FOREIGN_SQLITE, "missing/dir/x.db", "/proc/x.db"]
+
+
+def _text(min_size: int = 0) -> st.SearchStrategy[str]:
+    return st.text(ALPHABET, min_size=min_size, max_size=12)
+
+
+def _not_an_integer() -> st.SearchStrategy[str]:
+    return st.one_of(
+        _text().filter(lambda t: not t.strip().lstrip("+-").isdigit()),
+        st.floats(allow_nan=True, allow_infinity=True)
+        .filter(lambda f: f != f or f in (float("inf"), -float("inf")) or not f.is_integer())
+        .map(repr),
+    )
+
+
+def _int_outside(low: int | None, high: int | None) -> st.SearchStrategy[str]:
+    """Integers below low or above high (as text), and text that is no integer."""
+    parts = [_not_an_integer()]
+    if low is not None:
+        parts.append(st.integers(min_value=-(10**30), max_value=low - 1).map(str))
+    if high is not None:
+        parts.append(st.integers(min_value=high + 1, max_value=10**30).map(str))
+    return st.one_of(parts)
+
+
+def _not_in(choices: list[str]) -> st.SearchStrategy[str]:
+    return _text().filter(lambda t: t not in choices and not t.startswith("-"))
+
+
+def _unknown_name(known: list[str]) -> st.SearchStrategy[str]:
+    return _text().filter(lambda t: t not in known and not t.startswith("-"))
+
+
+#: Run ids of no run: the store holds run 1 only.
+_RUN_ID = st.one_of(
+    _not_an_integer(), st.integers(-(10**30), 0).map(str), st.integers(2, 10**30).map(str)
+)
+RUN_BASE = ["run", "-o", "hs", "-p", "sphere", "--budget", "5", "--set", "dim=2"]
+COMPARE_BASE = ["compare", "-o", "hs", "-p", "sphere", "--seeds", "1", "--budget", "5"]
+COMMANDS = ["list", "run", "resume", "runs", "show", "export", "replay", "report", "compare",
+            "new"]  # fmt: skip
+OPTIMIZERS, PROBLEMS = ["ga", "hs", "random"], ["sphere", "rastrigin", "nao-walk"]
+
+
+@st.composite
+def bad_invocation(draw) -> tuple[list[str], list[str]]:
+    """(arguments, what the error line must name: one of these strings)."""
+    kind = draw(st.sampled_from(sorted(_CASES)))
+    return _CASES[kind](draw)
+
+
+def _option(base: list[str], option: str, values: st.SearchStrategy[str], also: tuple = ()):
+    """A case: base arguments plus option with a bad value; the line names the option or the
+    value (or one of ``also``, for errors found past the option's own parsing)."""
+
+    def case(draw):
+        value = draw(values)
+        return [*base, option, value], [option, value, repr(value), *also]
+
+    return case
+
+
+def _argument(before: list[str], values: st.SearchStrategy[str], after: tuple = ()):
+    def case(draw):
+        value = draw(values)
+        names = [value, repr(value), "run id", "run ", "plugin"]
+        if value.startswith("-"):  # read as short options: the first one is named
+            names.append(value[:2])
+        return [*before, value, *after], names
+
+    return case
+
+
+def _set(base: list[str]):
+    pairs = st.one_of(
+        _text().filter(lambda t: "=" not in t),  # no NAME=VALUE
+        _text().map(lambda t: f"={t}"),  # no name
+        st.sampled_from(["zz=1", "dim=-3", "dim=x", "dim=1.5", "hmcr=2", "hms=0", "dim="]),
+    )
+
+    def case(draw):
+        pair = draw(pairs)
+        return [*base, "--set", pair], ["--set", pair.partition("=")[0].strip() or pair, "dim"]
+
+    return case
+
+
+def _db(command: list[str]):
+    def case(draw):
+        path = draw(st.sampled_from(BAD_STORES))
+        return [*command, "--db", path], [path]
+
+    return case
+
+
+def _unknown_option(draw):
+    command = draw(st.sampled_from(COMMANDS))
+    name = draw(st.text(string.ascii_lowercase, min_size=1, max_size=8))
+    option = "--" + ("x" + name if name in ("help", "version") else name)
+    return [command, option], [option]
+
+
+_CASES = {
+    # run
+    "run -o": lambda d: _argument(["run", "-o"], _unknown_name(OPTIMIZERS), ("-p", "sphere"))(d),
+    "run -p": lambda d: _argument(["run", "-o", "hs", "-p"], _unknown_name(PROBLEMS))(d),
+    "run --budget": _option(RUN_BASE[:5], "--budget", _int_outside(1, MAX_INT64)),
+    "run --seed": _option(RUN_BASE, "--seed", _int_outside(0, MAX_INT64)),
+    "run --batch": _option(RUN_BASE, "--batch", _int_outside(0, None)),
+    "run --resample": _option(
+        RUN_BASE, "--resample", st.one_of(_int_outside(1, None), st.integers(6, 10**9).map(str))
+    ),
+    "run --mode": _option(RUN_BASE, "--mode", _not_in(["sync", "async"])),
+    "run --aggregate": _option(RUN_BASE, "--aggregate", _not_in(["mean", "median"])),
+    "run --time-limit": _option(
+        RUN_BASE,
+        "--time-limit",
+        st.one_of(
+            st.floats(max_value=0).map(repr),
+            st.floats(min_value=1e6, exclude_min=True).map(repr),
+            st.just("nan"),
+            _text().filter(lambda t: not _is_float(t)),
+        ),
+        also=("time limit",),
+    ),
+    "run --set": _set(RUN_BASE),
+    "run --executor": _option(RUN_BASE, "--executor", _unknown_name(["serial", "process", "dask"])),
+    "run --workers": _option(RUN_BASE, "--workers", _int_outside(1, 1024)),
+    "run --scheduler": _option(
+        RUN_BASE,
+        "--scheduler",
+        st.one_of(
+            st.sampled_from(["http://127.0.0.1:8799", "", "tcp://", "a b:1", "tcp://h:p"]),
+            _text().map(lambda t: f"http://{t}"),
+        ),
+    ),
+    "run --db": _db(RUN_BASE),
+    # resume
+    "resume RUN": _argument(["resume"], st.one_of(_RUN_ID, st.just("1"))),  # 1 is finished
+    "resume --workers": _option(["resume", "1"], "--workers", _int_outside(1, 1024)),
+    "resume --executor": _option(["resume", "1"], "--executor", _unknown_name(["serial"])),
+    "resume --db": _db(["resume", "1"]),
+    # runs, show, export
+    "runs --format": _option(["runs"], "--format", _not_in(["table", "csv", "json"])),
+    "runs --db": _db(["runs"]),
+    "show RUN": _argument(["show"], _RUN_ID),
+    "show --format": _option(["show", "1"], "--format", _not_in(["table", "csv", "json"])),
+    "show --db": _db(["show", "1"]),
+    "export RUN": _argument(["export"], _RUN_ID),
+    "export --format": _option(["export", "1"], "--format", _not_in(["csv", "json"])),
+    "export --output": _option(["export", "1"], "--output", st.sampled_from(BAD_FILE_PATHS)),
+    "export --db": _db(["export", "1"]),
+    # replay
+    "replay RUN": _argument(["replay"], _RUN_ID),
+    "replay --backend": _option(["replay", "1"], "--backend", _text(), also=("'backend'",)),
+    "replay --set": _set(["replay", "1"]),
+    "replay --video": _option(
+        ["replay", "1"],
+        "--video",
+        st.one_of(
+            st.sampled_from([*BAD_FILE_PATHS, "w.gif", "w.avi", "w"]),
+            _text(1).filter(lambda t: "/" not in t and not t.lower().endswith(".mp4")),
+        ),
+    ),
+    "replay --db": _db(["replay", "1"]),
+    # report
+    "report RUN": _argument(["report"], _RUN_ID),
+    "report --out": _option(["report", "1"], "--out", st.sampled_from(BAD_FOLDER_PATHS)),
+    "report --group-by": _option(["report", "1"], "--group-by", _not_in(["setup", "optimizer"])),
+    "report --db": _db(["report", "1"]),
+    # compare
+    "compare FILE": _argument(
+        ["compare"], st.sampled_from([FOLDER, FOREIGN_TEXT, "missing.toml", "bad.toml"])
+    ),
+    "compare -o": lambda d: _argument(["compare", "-p", "sphere", "-o"], _unknown_name(OPTIMIZERS))(
+        d
+    ),
+    "compare -p": lambda d: _argument(["compare", "-o", "hs", "-p"], _unknown_name(PROBLEMS))(d),
+    "compare --seeds": _option(COMPARE_BASE[:5], "--seeds", _int_outside(1, 10_000)),
+    "compare --budget": _option(COMPARE_BASE[:7], "--budget", _int_outside(1, MAX_INT64)),
+    "compare --target": _option(
+        COMPARE_BASE, "--target", _text().filter(lambda t: not _is_float(t))
+    ),
+    "compare --set": _set(COMPARE_BASE),
+    "compare --csv": _option(COMPARE_BASE, "--csv", st.sampled_from(BAD_FILE_PATHS)),
+    "compare --transfer-csv": _option(
+        [*COMPARE_BASE, "--transfer"], "--transfer-csv", st.sampled_from(BAD_FILE_PATHS)
+    ),
+    "compare --format": _option(COMPARE_BASE, "--format", _not_in(["table", "csv", "json"])),
+    "compare --workers": _option(COMPARE_BASE, "--workers", _int_outside(1, 1024)),
+    "compare --db": _db(COMPARE_BASE),
+    # new, list
+    "new KIND": _argument(["new"], _not_in(["optimizer", "problem"]), ("my_plugin",)),
+    "new NAME": _argument(
+        ["new", "optimizer"],
+        st.one_of(
+            st.sampled_from(["", "1abc", "a b", "hs", "a/b", "-"]),
+            _text(1).filter(lambda t: not t.isidentifier() and not t.startswith("-")),
+        ),
+    ),
+    "new --directory": _option(
+        ["new", "optimizer", "fresh_plugin_name"],
+        "--directory",
+        st.sampled_from([*BAD_FOLDER_PATHS, FOLDER]),
+    ),
+    "list NAME": _argument(["list"], _unknown_name([*OPTIMIZERS, *PROBLEMS])),
+    # anywhere
+    "unknown option": _unknown_option,
+    "unknown command": _argument([], _not_in(COMMANDS).filter(bool)),
+}
+
+
+def _is_float(text: str) -> bool:
+    try:
+        float(text)
+    except ValueError:
+        return False
+    return True
+
+
+def _snapshot(folder: Path) -> dict[str, str]:
+    """Every file under folder by relative path, with a digest of its content."""
+    return {
+        str(path.relative_to(folder)): hashlib.sha256(path.read_bytes()).hexdigest()
+        for path in sorted(folder.rglob("*"))
+        if path.is_file()
+    }
+
+
+@pytest.fixture(scope="module")
+def workplace(tmp_path_factory) -> Path:
+    """A folder with a store holding one finished run, foreign files and a subfolder."""
+    folder = tmp_path_factory.mktemp("workplace")
+    store = str(folder / "metaopt.db")
+    done = CliRunner().invoke(
+        main, [*RUN_BASE[:5], "--budget", "30", "--set", "dim=2", "--db", store]
+    )
+    assert done.exit_code == 0, done.output
+    (folder / FOREIGN_TEXT).write_text("not a store\n")
+    with sqlite3.connect(folder / FOREIGN_SQLITE) as connection:
+        connection.execute("CREATE TABLE notes (text TEXT)")
+    (folder / FOLDER).mkdir()
+    (folder / "bad.toml").write_text('name = "x"\nproblem = "sphere"\nunknown_key = 1\n')
+    return folder
+
+
+TRIED: set[tuple[str, ...]] = set()
+
+
+@settings(
+    max_examples=1500,
+    deadline=None,
+    derandomize=True,  # the same inputs on every run: a failure is reproducible
+    suppress_health_check=[HealthCheck.function_scoped_fixture, HealthCheck.filter_too_much],
+)
+@given(case=bad_invocation())
+def test_generated_bad_input_is_refused_in_one_line(workplace, monkeypatch, case):
+    args, names = case
+    monkeypatch.chdir(workplace)
+    before = _snapshot(workplace)
+    result = CliRunner().invoke(main, args, catch_exceptions=True)
+    TRIED.add(tuple(args))
+    assert result.exit_code == 2, (args, result.output, result.exception)
+    assert result.exception is None or isinstance(result.exception, SystemExit), (
+        args,
+        result.exception,
+    )
+    lines = result.stderr.strip().splitlines()
+    assert len(lines) == 1 and lines[0].startswith("Error: "), (args, result.stderr)
+    assert "Traceback" not in result.output
+    assert any(name and name in lines[0] for name in names), (args, lines[0])
+    assert _snapshot(workplace) == before, args
+
+
+def test_the_sweep_tried_many_distinct_inputs():
+    """Runs after the sweep (file order): reports how many distinct argument lists it tried."""
+    if not TRIED:
+        pytest.skip("run together with the sweep")
+    print(f"\n{len(TRIED)} distinct bad invocations, none with a traceback")
+    assert len(TRIED) >= 400
