@@ -8,6 +8,7 @@ import time
 from collections.abc import Sequence
 from typing import Any
 
+from rich import box
 from rich.console import Console
 from rich.progress import (
     BarColumn,
@@ -210,19 +211,22 @@ def runs_table(
 ) -> Table:
     """`metaopt runs`: one row per run (cells fold rather than being cut in a narrow
     terminal)."""
-    table = Table(title="runs", title_justify="left")
     headers = ("id", "optimizer", "problem", "backend", "experiment", "settings", "seed",
                "evals", "failed", "best", "status", "started")  # fmt: skip
-    for column in headers:
-        table.add_column(column, overflow="fold", style="dim" if column == "started" else None)
+    rows = []
     for run in runs:
         fields = run_summary(run, counts[run.id], best[run.id], experiments.get(run.id))
-        table.add_row(
+        rows.append((
             str(run.id), run.optimizer, run.problem, fields["backend"] or "-",
             fields["experiment"] or "-", fields["settings"], str(run.seed),
             f"{fields['evaluations']}/{run.budget}", str(fields["failed"]),
-            format_number(best[run.id]), run.status, run.started_at,
-        )  # fmt: skip
+            format_number(best[run.id]), run.status, run.started_at[:16].replace("T", " "),
+        ))  # fmt: skip
+    table = Table(title="runs", title_justify="left", box=box.SIMPLE_HEAD, pad_edge=False)
+    for header in headers:  # cells fold in a narrow terminal: every column stays
+        table.add_column(header, overflow="fold")
+    for row in rows:
+        table.add_row(*row)
     return table
 
 

@@ -43,7 +43,7 @@ from metaopt.versions import environment_versions
 
 CHECKPOINT_INTERVAL = 1.0
 #: A run whose first this many evaluations all failed stops as failed rather than spend its
-#: budget on a problem set up so that nothing can succeed (docs/running.md).
+#: budget on a problem set up so that nothing can succeed (docs/index.md).
 ALL_FAILED_STOP = 10
 MODES = ("sync", "async")
 

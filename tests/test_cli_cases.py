@@ -301,3 +301,29 @@ def test_a_live_run_cannot_be_resumed_twice_but_a_dead_ones_can(tmp_path):
     second.send_signal(signal.SIGTERM)
     _, err = second.communicate(timeout=60)
     assert second.returncode == 130 and "Resume with: metaopt resume 1" in err
+
+
+@pytest.mark.parametrize("executor", [[], ["--executor", "process", "--workers", "2"]])
+def test_a_time_limit_shorter_than_the_engines_set_up_counts_only_evaluations(tmp_path, executor):
+    """Importing MuJoCo and building its model take longer than this limit; episodes do not.
+    The set-up is not timed, so no evaluation fails (none is cut short mid-import)."""
+    done = metaopt_cli(
+        "run", "-o", "hs", "-p", "nao-walk", "--budget", "12", "--seed", "1", "--set", "hms=4",
+        "--time-limit", "0.3", *SHORT_WALK, *executor, cwd=tmp_path,
+    )  # fmt: skip
+    assert done.returncode == 0, done.stderr
+    assert "12 (0 failed)" in done.stdout
+
+
+@pytest.mark.slow
+def test_dask_wall_time_includes_starting_the_cluster(tmp_path):
+    done = metaopt_cli(
+        "run", "-o", "hs", "-p", "sphere", "--budget", "8", "--seed", "1", "--executor", "dask",
+        "--workers", "1", cwd=tmp_path, env={"METAOPT_LOAD_PLUGINS": None},
+    )  # fmt: skip
+    assert done.returncode == 0, done.stderr
+    wall_line = next(line for line in done.stdout.splitlines() if "wall time" in line)
+    starting = float(wall_line.split("starting workers ")[1].split(" s")[0])
+    assert starting > 0.5  # a LocalCluster takes a while to start
+    shown = json.loads(metaopt_cli("show", "1", "--format", "json", cwd=tmp_path).stdout)
+    assert shown["wall_time"] > starting

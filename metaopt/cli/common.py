@@ -97,8 +97,6 @@ def check_executor_options(name: str | None, workers: int | None, scheduler: str
             f"--scheduler {scheduler!r} is not a Dask scheduler address; accepted: "
             "tcp://HOST:PORT (or tls://, ucx://, inproc://) or HOST:PORT"
         )
-    if name is not None:
-        registry().executor(name)  # an unknown name, with the installed ones
     if scheduler and name not in (None, "dask"):
         raise ConfigError(f"--scheduler is for the dask executor, not {name!r}")
     if name == "serial" and workers is not None and workers > 1:
@@ -106,6 +104,8 @@ def check_executor_options(name: str | None, workers: int | None, scheduler: str
             f"--executor serial runs one evaluation at a time, not --workers {workers}; "
             "use --executor process (or dask) for parallel evaluations"
         )
+    if name is not None:
+        registry().executor(name)  # an unknown name, with the installed ones
 
 
 def check_output_file(path: str, option: str, suffix: str | None = None) -> Path:
