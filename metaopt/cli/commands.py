@@ -45,8 +45,10 @@ from metaopt.run_loop import (
 from metaopt.settings import parse_problem_settings, split_settings
 from metaopt.store import RunStore
 
-#: The largest seed: SQLite stores integers of 64 bits.
-MAX_SEED = 2**63 - 1
+#: The largest seed or budget: SQLite stores integers of 64 bits.
+MAX_INT64 = 2**63 - 1
+#: click 8.2+ raises this for a group called with no arguments (older versions exit at once).
+_NO_ARGS_IS_HELP = getattr(click.exceptions, "NoArgsIsHelpError", ())
 
 
 class MetaoptGroup(click.Group):
@@ -59,6 +61,9 @@ class MetaoptGroup(click.Group):
             return super().main(*args, standalone_mode=False, **kwargs)
         try:
             code = super().main(*args, standalone_mode=False, **kwargs)
+        except _NO_ARGS_IS_HELP as error:  # `metaopt` alone: the help, as click shows it
+            error.show()
+            sys.exit(error.exit_code)
         except click.ClickException as error:
             hint = ""
             if isinstance(error, click.UsageError) and error.ctx is not None:
@@ -134,13 +139,13 @@ def list_plugins(name: str | None) -> None:
 @click.option("--problem", "-p", "problem_name", required=True, help="Problem name.")
 @click.option(
     "--budget",
-    type=click.IntRange(min=1, max=MAX_SEED),
+    type=click.IntRange(min=1, max=MAX_INT64),
     default=None,
     help="Evaluations [problem's default].",
 )
 @click.option(
     "--seed",
-    type=click.IntRange(min=0, max=MAX_SEED),
+    type=click.IntRange(min=0, max=MAX_INT64),
     default=None,
     help="Run seed [random, printed].",
 )
