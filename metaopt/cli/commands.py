@@ -14,18 +14,15 @@ from metaopt import display
 from metaopt.cli.common import (
     build_executor,
     check_executor_options,
-    check_output_file,
     console,
     db_option,
     errors,
-    format_option,
-    print_records,
     require_store,
     scheduling_options,
-    written_whole,
 )
 from metaopt.cli.compare import compare
 from metaopt.cli.new import new
+from metaopt.cli.output import check_output_file, format_option, print_records, written_whole
 from metaopt.cli.report import report, write_replay_video
 from metaopt.errors import MetaoptError, SettingWarning
 from metaopt.experiment_store import experiment_names

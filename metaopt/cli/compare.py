@@ -13,14 +13,12 @@ from metaopt import display
 from metaopt.cli.common import (
     build_executor,
     check_executor_options,
-    check_output_file,
     console,
     db_option,
     errors,
-    format_option,
     scheduling_options,
-    written_whole,
 )
+from metaopt.cli.output import check_output_file, format_option, written_whole
 from metaopt.comparison import compare as compare_cells
 from metaopt.errors import ConfigError
 from metaopt.experiment import Experiment, experiment_from_flags, load_experiment

@@ -6,7 +6,7 @@ from pathlib import Path
 
 import click
 
-from metaopt.cli.common import check_output_folder
+from metaopt.cli.output import check_output_folder
 from metaopt.scaffold import KINDS, create_plugin, plugin_names
 
 

@@ -10,7 +10,8 @@ from typing import Any
 
 import click
 
-from metaopt.cli.common import check_output_folder, db_option, require_store
+from metaopt.cli.common import db_option, require_store
+from metaopt.cli.output import check_output_folder
 from metaopt.convergence import GROUP_BY
 from metaopt.plugins import registry
 from metaopt.store import RunStore

@@ -1,0 +1,101 @@
+"""What commands write: the --format option, records as CSV or JSON, and output paths checked
+before any work and written whole or not at all."""
+
+from __future__ import annotations
+
+import csv
+import json
+import os
+import sys
+import tempfile
+from collections.abc import Iterator
+from contextlib import contextmanager
+from pathlib import Path
+from typing import Any, TextIO
+
+import click
+
+from metaopt.errors import ConfigError
+
+OUTPUT_FORMATS = ("table", "csv", "json")
+format_option = click.option(
+    "--format",
+    "fmt",
+    type=click.Choice(OUTPUT_FORMATS),
+    default="table",
+    show_default=True,
+    help="table for reading; csv or json (every field, full precision) for programs.",
+)
+
+
+def check_output_file(path: str, option: str, suffix: str | None = None) -> Path:
+    """ConfigError unless ``path`` can be written as a new or replaced file: not a directory,
+    its folder exists and is writable, and it ends in ``suffix`` when one is required. Checked
+    before any work, so a bad path never costs a run; nothing is left behind here."""
+    target = Path(path)
+    if path.endswith(("/", os.sep)) or target.is_dir():
+        raise ConfigError(f"{option} {path} is a directory; give a file path")
+    if suffix is not None and target.suffix.lower() != suffix:
+        raise ConfigError(f"{option} {path}: only {suffix} files are written; give a {suffix} path")
+    folder = target.parent
+    if not folder.is_dir():
+        raise ConfigError(f"{option} {path}: folder {folder} does not exist; create it first")
+    _check_writable(folder, option, path)
+    if target.exists() and not os.access(target, os.W_OK):
+        raise ConfigError(f"{option} {path}: no permission to write that file")
+    return target
+
+
+def check_output_folder(path: Path, option: str) -> None:
+    """ConfigError unless ``path`` is, or can be made, a folder to write files in: not a file,
+    and its nearest existing ancestor a folder that takes files. Nothing is left behind."""
+    if path.exists() and not path.is_dir():
+        raise ConfigError(f"{option} {path} is a file; give a folder")
+    existing = next(p for p in (path, *path.parents) if p.exists())
+    if not existing.is_dir():
+        raise ConfigError(f"{option} {path}: {existing} is a file, not a folder")
+    _check_writable(existing, option, path)
+
+
+def _check_writable(folder: Path, option: str, path: Path | str) -> None:
+    """The one sure test of a folder (permissions, read-only mounts, /proc): write in it."""
+    try:
+        with tempfile.TemporaryFile(dir=folder):
+            pass
+    except OSError as error:
+        raise ConfigError(f"{option} {path}: cannot write in {folder} ({error.strerror})") from None
+
+
+@contextmanager
+def written_whole(path: Path) -> Iterator[TextIO]:
+    """A text handle whose content lands at ``path`` only when the block succeeds: written to
+    a temporary file beside it and renamed, so a failure never leaves a half-written file."""
+    descriptor, temporary = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.")
+    umask = os.umask(0)
+    os.umask(umask)
+    os.chmod(temporary, 0o666 & ~umask)  # as open() would make it, not mkstemp's 0600
+    try:
+        with open(descriptor, "w", newline="") as handle:
+            yield handle
+        os.replace(temporary, path)
+    except BaseException:
+        Path(temporary).unlink(missing_ok=True)
+        raise
+
+
+def print_records(records: list[dict[str, Any]] | dict[str, Any], fmt: str) -> None:
+    """Records (or one record) on stdout as JSON, or as CSV: one column per key, nested
+    values as JSON."""
+    if fmt == "json":
+        json.dump(records, sys.stdout, indent=1)
+        sys.stdout.write("\n")
+        return
+    if isinstance(records, dict):
+        records = [records]
+    fields = list(dict.fromkeys(key for record in records for key in record))
+    writer = csv.DictWriter(sys.stdout, fieldnames=fields, lineterminator="\n")
+    writer.writeheader()
+    for record in records:
+        writer.writerow(
+            {k: json.dumps(v) if isinstance(v, dict | list) else v for k, v in record.items()}
+        )
