@@ -442,9 +442,16 @@ class _Session:
     def _why_failed(self) -> str:
         """The reason a run ends without a result: its failures and the first error."""
         first = f", the first with {self.first_error}" if self.first_error else ""
+        if self.failed < self.stored:  # resampled: no candidate had all its samples succeed
+            what = (
+                f"{self.failed} of {self.stored} evaluations failed and in no candidate did all "
+                f"{self.resample} samples succeed"
+            )
+        else:
+            what = f"all {self.stored} evaluations failed"
         return (
-            f"run {self.run_id}: all {self.stored} evaluations failed{first} (the problem's "
-            "settings may make every evaluation fail)"
+            f"run {self.run_id}: {what}{first} (the problem's settings may make every "
+            "evaluation fail)"
         )
 
     def _score(self, candidate: _Candidate) -> float:

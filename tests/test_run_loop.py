@@ -5,7 +5,8 @@ import pytest
 
 from metaopt import ConfigError, Evaluation, Problem, ProblemInfo, Sense, Space
 from metaopt.plugins import registry
-from metaopt.run_loop import RunSpec, run
+from metaopt.errors import RunFailed
+from metaopt.run_loop import RunSettings, RunSpec, run
 from metaopt.store import RunStore
 
 
@@ -114,3 +115,28 @@ def test_hs_finds_the_sphere_far_better_than_random(tmp_path):
     assert hs.best_fitness < 1e-2 and ga.best_fitness < 1e-2
     assert rnd.best_fitness > 100 * max(hs.best_fitness, ga.best_fitness)
     assert np.all(np.abs(hs.best_x) < 0.1)
+
+
+class EveryThirdFails(Problem):
+    """Sphere in 1-D whose every third call fails: with --resample 3 no candidate is whole."""
+
+    def __init__(self) -> None:
+        self.space = Space.from_bounds([-1.0], [1.0])
+        self.calls = 0
+
+    def evaluate(self, x: np.ndarray, seed: int) -> Evaluation:
+        self.calls += 1
+        if self.calls % 3 == 0:
+            raise ValueError("every third call fails")
+        return Evaluation(float(x[0] ** 2))
+
+
+def test_a_run_without_one_whole_candidate_fails_and_says_why(tmp_path):
+    plugins = registry()
+    info = ProblemInfo("third", "fails every third call", factory=EveryThirdFails)
+    spec = RunSpec("random", "third", 9, 1, settings=RunSettings(resample=3))
+    with RunStore(tmp_path / "runs.db") as store:
+        with pytest.raises(RunFailed, match="3 of 9 evaluations failed and in no candidate"):
+            run(spec, plugins.optimizer("random"), info, store)
+        record = store.runs()[0]
+        assert record.status == "failed" and "every third call fails" in record.message
