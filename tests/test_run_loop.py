@@ -4,8 +4,8 @@ import numpy as np
 import pytest
 
 from metaopt import ConfigError, Evaluation, Problem, ProblemInfo, Sense, Space
-from metaopt.plugins import registry
 from metaopt.errors import RunFailed
+from metaopt.plugins import registry
 from metaopt.run_loop import RunSettings, RunSpec, run
 from metaopt.store import RunStore
 
