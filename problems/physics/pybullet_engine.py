@@ -32,6 +32,10 @@ from metaopt.physics import (
 )
 from metaopt_problems.physics.pybullet_backend import DEFAULT_SUBSTEPS
 
+#: Bullet clamps a contact's combined friction coefficient (the product of the two bodies')
+#: to this (btManifoldResult::calculateCombinedFriction).
+MAX_CONTACT_FRICTION = 10.0
+
 
 def _vec(values) -> str:
     return " ".join(f"{v:.10g}" for v in values)
@@ -127,6 +131,11 @@ class PybulletBackend(PhysicsBackend):
         self._forces = [settings.max_joint_torque] * n
         self._steps = 0
         self._pose: tuple = ((0.0, 0.0, 0.0), (0.0, 0.0, 0.0, 1.0))
+        self._velocities = np.zeros(n)
+        self._torques = np.zeros(n)
+        #: External forces by link, re-applied before every stepSimulation (PyBullet clears
+        #: them after each call; within one call they act on every sub-step).
+        self._external: dict[int, Vec3] = {}
         self.reset()
 
     def reset(self) -> None:
@@ -139,12 +148,15 @@ class PybulletBackend(PhysicsBackend):
             pybullet.resetJointState(self._robot, joint, float(rest), 0.0, **call)
         self.set_ground_friction(self.settings.friction)
         self._steps = 0
+        self._external = {}
         self._read()
 
     def _read(self) -> None:
         """Refresh the cached joint angles and root pose after a change of state."""
         states = pybullet.getJointStates(self._robot, self._joints, **self._call)
         self._angles[:] = [s[0] for s in states]
+        self._velocities[:] = [s[1] for s in states]
+        self._torques[:] = [s[3] for s in states]
         self._pose = pybullet.getBasePositionAndOrientation(self._robot, **self._call)
 
     def step(self, joint_targets: np.ndarray) -> None:
@@ -153,6 +165,11 @@ class PybulletBackend(PhysicsBackend):
             self._robot, self._joints, pybullet.VELOCITY_CONTROL,
             targetVelocities=self._command.tolist(), forces=self._forces, **self._call,
         )  # fmt: skip
+        for link, force in self._external.items():
+            pybullet.applyExternalForce(
+                self._robot, link, force, self._center_of_mass(link), pybullet.WORLD_FRAME,
+                **self._call,
+            )  # fmt: skip
         pybullet.stepSimulation(**self._call)
         self._steps += 1
         self._read()
@@ -187,6 +204,42 @@ class PybulletBackend(PhysicsBackend):
     def time(self) -> float:
         return self._steps * self.settings.control_period
 
+    def joint_velocities(self) -> np.ndarray:
+        return self._velocities.copy()
+
+    def joint_torques(self) -> np.ndarray:
+        # appliedJointMotorTorque is the last sub-step's motor impulse divided by the whole
+        # control period (as contact forces are, see contact_forces).
+        return self._substeps * self._torques
+
+    def body_mass(self, name: str) -> float:
+        return float(pybullet.getDynamicsInfo(self._robot, self._links[name], **self._call)[0])
+
+    def body_inertia(self, name: str) -> Vec3:
+        info = pybullet.getDynamicsInfo(self._robot, self._links[name], **self._call)
+        return (float(info[2][0]), float(info[2][1]), float(info[2][2]))
+
+    def ground_friction(self) -> float:
+        """The coefficient of a foot's ground contact: Bullet multiplies the two bodies'
+        coefficients and clamps the product to ±MAX_CONTACT_FRICTION."""
+        ground = pybullet.getDynamicsInfo(self._plane, -1, **self._call)[1]
+        foot = self._links[self.robot.contact_bodies[0]]
+        own = pybullet.getDynamicsInfo(self._robot, foot, **self._call)[1]
+        return float(min(ground * own, MAX_CONTACT_FRICTION))
+
+    def apply_force(self, body: str, force: Vec3) -> None:
+        link = self._links[body]
+        if any(force):
+            self._external[link] = tuple(float(f) for f in force)
+        else:
+            self._external.pop(link, None)
+
+    def _center_of_mass(self, link: int) -> Vec3:
+        """World position of a link's centre of mass (the base's frame is at its centre)."""
+        if link < 0:
+            return pybullet.getBasePositionAndOrientation(self._robot, **self._call)[0]
+        return pybullet.getLinkState(self._robot, link, **self._call)[0]
+
     def set_ground_friction(self, mu: float) -> None:
         pybullet.changeDynamics(self._plane, -1, lateralFriction=mu, **self._call)
 
@@ -196,10 +249,11 @@ class PybulletBackend(PhysicsBackend):
         pybullet.resetBaseVelocity(self._robot, pushed, angular, **self._call)
 
     def save_state(self) -> Any:
-        return (pybullet.saveState(**self._call), self._steps)
+        return (pybullet.saveState(**self._call), self._steps, dict(self._external))
 
     def restore_state(self, state: Any) -> None:
-        state_id, self._steps = state
+        state_id, self._steps, external = state
+        self._external = dict(external)
         pybullet.restoreState(stateId=state_id, **self._call)
         self._read()
 
