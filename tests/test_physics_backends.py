@@ -10,6 +10,7 @@ import numpy as np
 import pybullet
 import pytest
 
+from metaopt.engine_agreement import engine, measure_friction
 from metaopt.errors import ConfigError, EvaluationError
 from metaopt.physics import PhysicsBackend, PhysicsSettings
 from metaopt.plugins import registry
@@ -207,3 +208,38 @@ def test_apply_force_changes_the_momentum_by_force_times_time(backend: PhysicsBa
     assert not backend.contact_forces().any()
     momentum = robot.total_mass * (_center_of_mass(backend) - start) / (5 * period)
     assert momentum[:2] == pytest.approx(np.array(force[:2]) * 5 * period, rel=0.01, abs=1e-3)
+
+
+def test_ground_friction_reads_back_the_coefficient_set(backend: PhysicsBackend) -> None:
+    assert backend.ground_friction() == pytest.approx(1.0)
+    backend.step(backend.robot.rest_angles)
+    backend.set_ground_friction(0.7)
+    assert backend.ground_friction() == pytest.approx(0.7)
+    backend.reset()
+    assert backend.ground_friction() == pytest.approx(backend.settings.friction)
+
+
+def test_every_pybullet_link_has_friction_one_and_the_ground_the_setting() -> None:
+    """Read from PyBullet itself: the pair's coefficient is the product of the two bodies'."""
+    engine = registry().physics_backend("pybullet").factory(nao(), PhysicsSettings(friction=0.8))
+    try:
+        client = engine._client
+        links = [pybullet.getDynamicsInfo(engine._robot, link, physicsClientId=client)[1]
+                 for link in engine._links.values()]  # fmt: skip
+        assert links == [1.0] * len(nao().bodies)
+        assert pybullet.getDynamicsInfo(engine._plane, -1, physicsClientId=client)[1] == 0.8
+        engine.set_ground_friction(20.0)
+        assert engine.ground_friction() == 10.0  # Bullet clamps the pair's coefficient
+    finally:
+        engine.close()
+
+
+@pytest.mark.parametrize("name", BACKENDS)
+@pytest.mark.parametrize("mu", [0.5, 1.0])
+def test_the_feet_slide_at_the_force_friction_predicts(name: str, mu: float) -> None:
+    """Pushed 15 % beyond μ·m·g the feet slide as friction μ predicts; at 90 % they hold."""
+    with engine(name, friction=mu) as sim:
+        read, slide, creep = measure_friction(sim)
+    assert read.measured == pytest.approx(mu)
+    assert slide.agrees, slide.describe()
+    assert creep.agrees, creep.describe()

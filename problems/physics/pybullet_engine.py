@@ -1,8 +1,10 @@
 """PyBullet physics backend: builds a URDF from a RobotDescription and drives it.
 
 Each hinge is driven with VELOCITY_CONTROL and a force limit, PyBullet's analogue of the ODE
-hinge motor of rcssserver3d. One stepSimulation call advances a control period in ``substeps``
-sub-steps (setPhysicsEngineParameter numSubSteps). Every instance has its own DIRECT client.
+hinge motor of rcssserver3d. A control period is ``substeps`` stepSimulation calls of
+control_period / substeps each, not one call with numSubSteps: PyBullet sizes a motor's impulse
+limit (and divides its reported torques and contact forces) by the time step it was given, so
+with numSubSteps = 4 a 10 N·m motor held 40 N·m. Every instance has its own DIRECT client.
 render() uses PyBullet's built-in software renderer (TinyRenderer: no OpenGL needed).
 """
 
@@ -30,11 +32,11 @@ from metaopt.physics import (
     Vec3,
     servo_velocities,
 )
-from metaopt_problems.physics.pybullet_backend import DEFAULT_SUBSTEPS
-
-#: Bullet clamps a contact's combined friction coefficient (the product of the two bodies')
-#: to this (btManifoldResult::calculateCombinedFriction).
-MAX_CONTACT_FRICTION = 10.0
+from metaopt_problems.physics.pybullet_backend import (
+    DEFAULT_SUBSTEPS,
+    MAX_FRICTION,
+    SOLVER_ITERATIONS,
+)
 
 
 def _vec(values) -> str:
@@ -98,8 +100,8 @@ class PybulletBackend(PhysicsBackend):
         self._substeps = substeps
         self._call = dict(physicsClientId=self._client)
         pybullet.setGravity(0, 0, -9.81, **self._call)
-        pybullet.setTimeStep(settings.control_period, **self._call)
-        pybullet.setPhysicsEngineParameter(numSubSteps=substeps, **self._call)
+        pybullet.setTimeStep(settings.control_period / substeps, **self._call)
+        pybullet.setPhysicsEngineParameter(numSolverIterations=SOLVER_ITERATIONS, **self._call)
         plane = pybullet.createCollisionShape(pybullet.GEOM_PLANE, **self._call)
         self._plane = pybullet.createMultiBody(0, plane, **self._call)
         with tempfile.NamedTemporaryFile("w", suffix=".urdf", delete=False) as file:
@@ -118,12 +120,13 @@ class PybulletBackend(PhysicsBackend):
         self._joints = [link_of[h.child] for h in robot.hinges]
         self._feet = [link_of[name] for name in robot.contact_bodies]
         # PyBullet multiplies the two bodies' coefficients: the robot's are 1, so the
-        # ground's (set_ground_friction) is the pair's.
+        # ground's (set_ground_friction) is the pair's. Friction gets its own call: given
+        # together with the damping, it takes for the base only (the links kept 0.5).
         for link in link_of.values():
+            pybullet.changeDynamics(self._robot, link, lateralFriction=1.0, **self._call)
             pybullet.changeDynamics(
-                self._robot, link, lateralFriction=1.0, linearDamping=0.0, angularDamping=0.0,
-                **self._call,
-            )  # fmt: skip
+                self._robot, link, linearDamping=0.0, angularDamping=0.0, **self._call
+            )
             pybullet.changeVisualShape(self._robot, link, rgbaColor=ROBOT_RGBA, **self._call)
         n = len(robot.hinges)
         self._angles = np.zeros(n)
@@ -134,7 +137,7 @@ class PybulletBackend(PhysicsBackend):
         self._velocities = np.zeros(n)
         self._torques = np.zeros(n)
         #: External forces by link, re-applied before every stepSimulation (PyBullet clears
-        #: them after each call; within one call they act on every sub-step).
+        #: them after each call).
         self._external: dict[int, Vec3] = {}
         self.reset()
 
@@ -165,12 +168,13 @@ class PybulletBackend(PhysicsBackend):
             self._robot, self._joints, pybullet.VELOCITY_CONTROL,
             targetVelocities=self._command.tolist(), forces=self._forces, **self._call,
         )  # fmt: skip
-        for link, force in self._external.items():
-            pybullet.applyExternalForce(
-                self._robot, link, force, self._center_of_mass(link), pybullet.WORLD_FRAME,
-                **self._call,
-            )  # fmt: skip
-        pybullet.stepSimulation(**self._call)
+        for _ in range(self._substeps):
+            for link, force in self._external.items():
+                pybullet.applyExternalForce(
+                    self._robot, link, force, self._center_of_mass(link), pybullet.WORLD_FRAME,
+                    **self._call,
+                )  # fmt: skip
+            pybullet.stepSimulation(**self._call)
         self._steps += 1
         self._read()
         if not np.isfinite(self._pose[0][2]) or abs(self._pose[0][2]) > 1e3:
@@ -192,10 +196,9 @@ class PybulletBackend(PhysicsBackend):
         return np.asarray(pybullet.getLinkState(self._robot, link, **self._call)[0])
 
     def contact_forces(self) -> np.ndarray:
-        # PyBullet reports the last sub-step's impulse divided by the whole control period.
         return np.array(
             [
-                self._substeps * sum(c[9] for c in pybullet.getContactPoints(
+                sum(c[9] for c in pybullet.getContactPoints(
                     self._robot, self._plane, foot, -1, **self._call))
                 for foot in self._feet
             ]
@@ -208,9 +211,8 @@ class PybulletBackend(PhysicsBackend):
         return self._velocities.copy()
 
     def joint_torques(self) -> np.ndarray:
-        # appliedJointMotorTorque is the last sub-step's motor impulse divided by the whole
-        # control period (as contact forces are, see contact_forces).
-        return self._substeps * self._torques
+        # appliedJointMotorTorque: the motor's impulse in the last step over its length.
+        return self._torques.copy()
 
     def body_mass(self, name: str) -> float:
         return float(pybullet.getDynamicsInfo(self._robot, self._links[name], **self._call)[0])
@@ -221,11 +223,11 @@ class PybulletBackend(PhysicsBackend):
 
     def ground_friction(self) -> float:
         """The coefficient of a foot's ground contact: Bullet multiplies the two bodies'
-        coefficients and clamps the product to ±MAX_CONTACT_FRICTION."""
+        coefficients and clamps the product to MAX_FRICTION."""
         ground = pybullet.getDynamicsInfo(self._plane, -1, **self._call)[1]
         foot = self._links[self.robot.contact_bodies[0]]
         own = pybullet.getDynamicsInfo(self._robot, foot, **self._call)[1]
-        return float(min(ground * own, MAX_CONTACT_FRICTION))
+        return float(min(ground * own, MAX_FRICTION))
 
     def apply_force(self, body: str, force: Vec3) -> None:
         link = self._links[body]
