@@ -1,9 +1,11 @@
 """MuJoCo physics backend: builds an MJCF model from a RobotDescription and drives it.
 
 Each hinge gets a velocity actuator (force = KV * (command - joint speed), limited to
-±max_joint_torque), the analogue of the ODE hinge motor of rcssserver3d; the implicit-fast
-integrator keeps that stiff damping stable. The state (time, qpos, qvel, act, ctrl, warm start)
-is saved and restored with mj_getState/mj_setState, which reproduces a run bit for bit.
+±max_joint_torque), the nearest MuJoCo has to the ODE hinge motor of rcssserver3d (a constraint
+reaching its target speed within the step with at most 10 N·m); how near is measured in
+docs/nao-walk.md ("Motors") by benchmarks/motor_model.py. The state (time, qpos, qvel, act,
+ctrl, warm start, applied forces) is saved and restored with mj_getState/mj_setState, which
+reproduces a run bit for bit.
 render() draws offscreen with mujoco.Renderer (headless OpenGL: EGL, else OSMesa).
 """
 
@@ -42,12 +44,16 @@ from metaopt.physics import (
 )
 from metaopt_problems.physics.mujoco_backend import DEFAULT_SUBSTEPS
 
-#: Velocity-servo gain, N·m per rad/s: stiff enough that the torque limit, not the gain,
-#: decides how fast a joint follows its command (as ODE's motor constraint does).
-KV = 20.0
-#: Rotor inertia added to every hinge, kg·m². Without it the servo and the tiny mass-carrier
-#: spheres (I ~ 5e-6) set up a ±1° rocking limit cycle; stability needs about
-#: KV * timestep / ARMATURE <= 5 (so 0.02 at 4 substeps; see docs/nao-walk.md).
+#: Velocity-servo gain, N·m per rad/s. MuJoCo integrates the actuator implicitly only while
+#: its force is inside the force range; a clamped force acts explicitly for the whole step, so
+#: a joint overshoots its target by up to 10 N·m * timestep / inertia. At 20 that set up a
+#: period-2 chatter at the limit (the head commanded 3 rad/s alternated 2.4 and 4.9 rad/s;
+#: some joint at the limit on 89-94 % of a fast gait's control steps); at 10 a commanded
+#: speed is reached within a control period and the chatter is gone.
+KV = 10.0
+#: Rotor inertia added to every hinge, kg·m² (the server has none). Without it the servo and
+#: the tiny mass-carrier spheres (I ~ 5e-6) are unstable (KV >= 200) or rock the standing
+#: robot by 1-2.5° (KV 5-2000, 4-40 substeps); measured in docs/nao-walk.md ("Motors").
 ARMATURE = 0.02
 _STATE = mujoco.mjtState.mjSTATE_INTEGRATION
 
