@@ -46,14 +46,16 @@ from metaopt_problems.physics.mujoco_backend import DEFAULT_SUBSTEPS
 
 #: Velocity-servo gain, N·m per rad/s. MuJoCo integrates the actuator implicitly only while
 #: its force is inside the force range; a clamped force acts explicitly for the whole step, so
-#: a joint overshoots its target by up to 10 N·m * timestep / inertia. At 20 that set up a
-#: period-2 chatter at the limit (the head commanded 3 rad/s alternated 2.4 and 4.9 rad/s;
-#: some joint at the limit on 89-94 % of a fast gait's control steps); at 10 a commanded
-#: speed is reached within a control period and the chatter is gone.
-KV = 10.0
+#: a joint overshoots its target by up to 10 N·m * timestep / inertia and chatters at the limit
+#: unless KV * timestep / ARMATURE stays near 2.5 or below. The old KV 20 at 0.005 s steps (5)
+#: chattered: the head commanded 3 rad/s alternated 2.4 and 4.9 rad/s, and some joint sat at
+#: the limit on 89-94 % of a fast gait's control steps. KV 40 at 0.00125 s steps (2.5) reaches
+#: a commanded speed within a control period without chatter and holds a joint twice as stiffly
+#: as before; fewer substeps bring the chatter back (docs/nao-walk.md, "Motors").
+KV = 40.0
 #: Rotor inertia added to every hinge, kg·m² (the server has none). Without it the servo and
-#: the tiny mass-carrier spheres (I ~ 5e-6) are unstable (KV >= 200) or rock the standing
-#: robot by 1-2.5° (KV 5-2000, 4-40 substeps); measured in docs/nao-walk.md ("Motors").
+#: the tiny mass-carrier spheres (I ~ 5e-6) are unstable (KV >= 200 at 4 substeps) or rock the
+#: standing robot by 1-2.5° (KV 5-2000, 4-40 substeps); measured in docs/nao-walk.md.
 ARMATURE = 0.02
 _STATE = mujoco.mjtState.mjSTATE_INTEGRATION
 
