@@ -83,6 +83,8 @@ def list_plugins(name: str | None) -> None:
     if name in plugins.physics_backends:
         info = plugins.physics_backends[name]
         console.print(f"[bold cyan]{info.name}[/] (physics backend): {info.summary}")
+        if info.unavailable:
+            console.print(f"unavailable: {info.unavailable}", markup=False)
         return
     plugins.optimizer(name)  # raises with close matches among optimizers
     raise AssertionError("unreachable")

@@ -8,6 +8,7 @@ import time
 from collections.abc import Sequence
 
 from rich.console import Console
+from rich.markup import escape
 from rich.progress import (
     BarColumn,
     MofNCompleteColumn,
@@ -56,6 +57,8 @@ def plugin_overview(kind: str, infos: Sequence, sources: Sequence[str]) -> Table
     table.add_column("summary / meaning", overflow="fold")
     for info, source in zip(infos, sources):
         summary = f"{info.summary} [dim](from {source})[/]"
+        if getattr(info, "unavailable", ""):
+            summary = f"[bold red]unavailable:[/] {escape(info.unavailable)}\n{summary}"
         table.add_row(f"[bold cyan]{info.name}[/]", "", "", "", summary)
         for p in getattr(info, "params", ()):
             table.add_row(f"  {p.name}", p.type_name, str(p.default), p.range_text(), p.help)

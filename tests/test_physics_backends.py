@@ -14,11 +14,14 @@ from metaopt.errors import ConfigError, EvaluationError
 from metaopt.physics import PhysicsBackend, PhysicsSettings
 from metaopt.plugins import registry
 from metaopt_problems.nao_walk.robot import nao
+from tests.engines import needs_ode
 
 BACKENDS = ("mujoco", "pybullet")
+#: Every engine, ODE where its library is installed (.ci/run installs it).
+ENGINES = (*BACKENDS, pytest.param("ode", marks=needs_ode))
 
 
-@pytest.fixture(params=BACKENDS)
+@pytest.fixture(params=ENGINES)
 def backend(request: pytest.FixtureRequest) -> Iterator[PhysicsBackend]:
     engine = registry().physics_backend(request.param).factory(nao(), PhysicsSettings())
     yield engine
@@ -60,8 +63,10 @@ def _construction_pose(engine: PhysicsBackend) -> None:
             pybullet.resetJointState(engine._robot, joint, 0.0, physicsClientId=engine._client)
 
 
-def test_model_matches_the_description(backend: PhysicsBackend) -> None:
+@pytest.mark.parametrize("name", BACKENDS)
+def test_model_matches_the_description(name: str) -> None:
     robot = nao()
+    backend = registry().physics_backend(name).factory(robot, PhysicsSettings())
     _construction_pose(backend)
     mass, limits, height = _model_mass_and_limits(backend)
     assert mass == pytest.approx(4.6071, abs=1e-6)
@@ -69,6 +74,7 @@ def test_model_matches_the_description(backend: PhysicsBackend) -> None:
     for h in robot.hinges:
         assert limits[h.name] == pytest.approx((h.lower, h.upper), abs=1e-9)
     assert height == pytest.approx(0.605, abs=1e-6)
+    backend.close()
 
 
 def _tilt_degrees(engine: PhysicsBackend) -> float:
@@ -138,5 +144,5 @@ def test_non_finite_targets_are_an_evaluation_error(backend: PhysicsBackend) -> 
 
 
 def test_unknown_backend_lists_the_installed_ones() -> None:
-    with pytest.raises(ConfigError, match="Installed: mujoco, pybullet"):
-        registry().physics_backend("ode")
+    with pytest.raises(ConfigError, match="Installed: mujoco, ode, pybullet"):
+        registry().physics_backend("bullet")
