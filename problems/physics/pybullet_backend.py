@@ -12,6 +12,8 @@ from metaopt.physics import BackendInfo, PhysicsBackend, PhysicsSettings, RobotD
 #: Physics steps per 20 ms control period by default (0.005 s steps): the fewest at which the
 #: NAO stands without jitter (docs/nao-walk.md).
 DEFAULT_SUBSTEPS = 4
+#: The largest ground friction coefficient offered (PyBullet has no unlimited friction).
+MAX_FRICTION = 1000.0
 
 
 def create(robot: RobotDescription, settings: PhysicsSettings) -> PhysicsBackend:
@@ -30,5 +32,6 @@ def metaopt_physics_backends() -> list[BackendInfo]:
             summary="PyBullet (Bullet multibody): constraint motors like ODE's",
             factory=create,
             default_substeps=DEFAULT_SUBSTEPS,
+            max_friction=MAX_FRICTION,
         )
     ]
