@@ -169,8 +169,7 @@ class Ode:
             library = ctypes.CDLL(name)
         except OSError as error:
             raise OdeUnavailable(
-                f"the ODE library {name} is not installed ({error}); install it with: "
-                f"{INSTALL_COMMAND}"
+                f"cannot load the ODE library ({error}); install it with: {INSTALL_COMMAND}"
             ) from None
         for function, (restype, argtypes) in _SIGNATURES.items():
             bound = getattr(library, function)
