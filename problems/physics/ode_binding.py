@@ -31,6 +31,9 @@ CONTACT_SLIP1 = 0x100
 CONTACT_SLIP2 = 0x200
 CONTACT_APPROX1 = 0x7000  # friction pyramid scaled by the normal force: mu is a coefficient
 
+#: dAllocateODEDataForThread flag: the calling thread may run collision detection.
+ALLOCATE_COLLISION_DATA = 0x1
+
 # Joint parameters, first group (ode/common.h D_ALL_PARAM_NAMES)
 PARAM_LO_STOP = 0
 PARAM_HI_STOP = 1
@@ -102,6 +105,7 @@ _ID = c_void_p
 _P = POINTER(dReal)
 _SIGNATURES: dict[str, tuple[type | None, list]] = {
     "dInitODE2": (c_int, [ctypes.c_uint]),
+    "dAllocateODEDataForThread": (c_int, [ctypes.c_uint]),
     "dGetConfiguration": (ctypes.c_char_p, []),
     "dWorldCreate": (_ID, []),
     "dWorldDestroy": (None, [_ID]),

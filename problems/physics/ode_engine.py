@@ -30,6 +30,7 @@ from metaopt.physics import (
 )
 from metaopt_problems.physics.ode_backend import DEFAULT_SUBSTEPS
 from metaopt_problems.physics.ode_binding import (
+    ALLOCATE_COLLISION_DATA,
     CONTACT_APPROX1,
     CONTACT_SLIP1,
     CONTACT_SLIP2,
@@ -131,6 +132,7 @@ class OdeBackend(PhysicsBackend):
     def __init__(self, robot: RobotDescription, settings: PhysicsSettings) -> None:
         super().__init__(robot, settings)
         self._ode = lib = ode()
+        lib.dAllocateODEDataForThread(ALLOCATE_COLLISION_DATA)  # ODE's per-thread data
         self._substeps = settings.substeps or DEFAULT_SUBSTEPS
         self._h = settings.control_period / self._substeps
         self._world = world = lib.dWorldCreate()
