@@ -7,7 +7,8 @@ no bounce; robot parts never collide with each other; drag -0.01 v and -0.01 w o
 before each step; every joint an ODE hinge with the server's motor and stop parameters.
 Deviation: auto-disable stays off (a disabled body's state is not part of what save_state can
 restore, and the walk never rests). The state (every body's pose and velocities, motor targets,
-applied forces, time) is saved and restored through ODE's own setters, bit for bit.
+applied forces, time) is saved and restored bit for bit: through ODE's setters, the quaternion
+and rotation matrix then written back as saved (the setter renormalises).
 ODE cannot draw: render() shows ODE's pose through the MuJoCo model of the same robot.
 """
 
@@ -116,10 +117,10 @@ def rest_pose(robot: RobotDescription) -> dict[str, tuple[np.ndarray, np.ndarray
     return pose
 
 
-def _view(pointer: Any, size: int) -> np.ndarray:
-    """A numpy view of ODE-owned doubles (a body's position, velocity ...), live and read-only."""
+def _view(pointer: Any, size: int, writable: bool = False) -> np.ndarray:
+    """A live numpy view of ODE-owned doubles (a body's position, velocity ...)."""
     view = np.ctypeslib.as_array(pointer, shape=(size,))
-    view.flags.writeable = False
+    view.flags.writeable = writable
     return view
 
 
@@ -162,8 +163,9 @@ class OdeBackend(PhysicsBackend):
                                      for h in robot.hinges])  # fmt: skip
         self._axis = np.array([h.axis for h in robot.hinges], dtype=float)
         self._position = [_view(lib.dBodyGetPosition(b), 3) for b in self._bodies]
-        self._quaternion = [_view(lib.dBodyGetQuaternion(b), 4) for b in self._bodies]
-        self._rotation = [_view(lib.dBodyGetRotation(b), 12) for b in self._bodies]
+        # Writable: restore_state puts back the exact bits (below).
+        self._quaternion = [_view(lib.dBodyGetQuaternion(b), 4, True) for b in self._bodies]
+        self._rotation = [_view(lib.dBodyGetRotation(b), 12, True) for b in self._bodies]
         self._linear = [_view(lib.dBodyGetLinearVel(b), 3) for b in self._bodies]
         self._angular = [_view(lib.dBodyGetAngularVel(b), 3) for b in self._bodies]
         self._child_rotation = np.zeros((len(child), 12))  # child frames as the last step began
@@ -251,9 +253,9 @@ class OdeBackend(PhysicsBackend):
 
     def save_state(self) -> Any:
         bodies = np.array([
-            np.concatenate((p, q, v, w))
-            for p, q, v, w in zip(self._position, self._quaternion, self._linear, self._angular,
-                                  strict=True)
+            np.concatenate((p, q, v, w, r))
+            for p, q, v, w, r in zip(self._position, self._quaternion, self._linear,
+                                     self._angular, self._rotation, strict=True)
         ])  # fmt: skip
         targets = np.array([self._ode.dJointGetHingeParam(j, PARAM_VEL) for j in self._joints])
         readings = (self.contact_forces().copy(), self.joint_torques().copy())
@@ -262,10 +264,14 @@ class OdeBackend(PhysicsBackend):
     def restore_state(self, state: Any) -> None:
         bodies, targets, forces, self._steps, readings = state
         lib, quaternion = self._ode, (ctypes.c_double * 4)()
-        for handle, row in zip(self._bodies, bodies.tolist(), strict=True):
+        for k, (handle, row) in enumerate(zip(self._bodies, bodies.tolist(), strict=True)):
             lib.dBodySetPosition(handle, *row[0:3])
             quaternion[:] = row[3:7]
             lib.dBodySetQuaternion(handle, quaternion)
+            # dBodySetQuaternion renormalises, which can change the last bit; put the saved
+            # quaternion and the rotation ODE had derived from it back as they were.
+            self._quaternion[k][:] = row[3:7]
+            self._rotation[k][:] = row[13:25]
             lib.dBodySetLinearVel(handle, *row[7:10])
             lib.dBodySetAngularVel(handle, *row[10:13])
         for joint, target in zip(self._joints, targets.tolist(), strict=True):
