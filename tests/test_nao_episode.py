@@ -135,8 +135,8 @@ def test_paper_fitness_is_eq_9_as_printed() -> None:
 
 def test_problem_rejects_unknown_backend_and_bad_timing() -> None:
     info = registry().problem("nao-walk")
-    with pytest.raises(ConfigError, match="Installed: mujoco, pybullet"):
-        info.factory(backend="ode")
+    with pytest.raises(ConfigError, match="Installed: mujoco, ode, pybullet"):
+        info.factory(backend="bullet")
     with pytest.raises(ConfigError, match="lock"):
         info.factory(duration=3.0, lock=3.0)
 
