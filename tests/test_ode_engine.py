@@ -100,6 +100,26 @@ def test_without_slip_infinite_friction_holds_the_feet() -> None:
 
 
 @needs_ode
+@pytest.mark.parametrize("ratio", [0.9, 1.5])
+def test_a_finite_friction_is_a_coulomb_coefficient(ratio: float) -> None:
+    """friction = 0.1 (dContactApprox1, no slip): a sideways push on a foot below mu·m·g
+    holds the robot; above it the robot slides with acceleration (F - mu·m·g) / m."""
+    mu = 0.1
+    backend = _ode(friction=mu, slip=0.0)
+    assert backend.ground_friction() == mu
+    _stand(backend, 50)
+    start = backend.body_position("lfoot")[1]
+    backend.apply_force("lfoot", (0.0, ratio * mu * WEIGHT, 0.0))
+    _stand(backend, 50)  # 1 s
+    moved = backend.body_position("lfoot")[1] - start
+    backend.close()
+    if ratio < 1:
+        assert abs(moved) < 1e-4
+    else:
+        assert moved == pytest.approx(0.5 * (ratio - 1) * mu * WEIGHT / 4.6071, rel=0.02)
+
+
+@needs_ode
 def test_the_motor_reaches_its_command_within_the_step_or_saturates_at_10_nm(engine) -> None:
     """A free arm reaches the clamped velocity command (6.1395 rad/s) in one 20 ms step; a hip
     swinging the leg of a standing robot pushes at exactly FMax = 10 N·m, read back from
