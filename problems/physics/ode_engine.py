@@ -26,6 +26,7 @@ from metaopt.physics import (
     PhysicsBackend,
     PhysicsSettings,
     RobotDescription,
+    Shape,
     Vec3,
     servo_velocities,
 )
@@ -117,6 +118,15 @@ def rest_pose(robot: RobotDescription) -> dict[str, tuple[np.ndarray, np.ndarray
     return pose
 
 
+def _reach(shape: Shape) -> float:
+    """The farthest any point of a shape lies from its centre, m."""
+    if shape.kind == "box":
+        return 0.5 * math.hypot(*shape.size)
+    if shape.kind == "sphere":
+        return shape.size[0]
+    return shape.size[0] + 0.5 * shape.size[1]
+
+
 def _view(pointer: Any, size: int, writable: bool = False) -> np.ndarray:
     """A live numpy view of ODE-owned doubles (a body's position, velocity ...)."""
     view = np.ctypeslib.as_array(pointer, shape=(size,))
@@ -185,7 +195,15 @@ class OdeBackend(PhysicsBackend):
         self._geom_foot = [feet.get(i, -1) for i in self._geom_body]
         self._touching: list[tuple[int, int, int]] = []  # (foot, geom, contact) of the last step
         self._stride = ctypes.sizeof(Contact)
-        self._applied: dict[int, tuple[float, float, float]] = {}
+        # Force and torque accumulators ODE adds to in a step and zeroes after it, written
+        # directly (as dBodySetForce/Torque would), with drag and applied forces per body.
+        self._accumulators = [_view(lib.dBodyGetForce(b), 3, True) for b in self._bodies]
+        self._accumulators += [_view(lib.dBodyGetTorque(b), 3, True) for b in self._bodies]
+        self._velocities = self._linear + self._angular  # same order as the accumulators
+        self._applied = np.zeros((2 * len(self._bodies), 3))  # forces, then (zero) torques
+        # A geom whose centre is higher above the ground than its farthest point cannot touch it.
+        self._reach = [_reach(body.shape) for body in robot.bodies if body.collides]
+        self._geom_position = [self._position[i] for i in self._geom_body]
         n = len(robot.hinges)
         self._command = np.zeros(n)
         self._angles = np.zeros(n)
@@ -259,7 +277,7 @@ class OdeBackend(PhysicsBackend):
         ])  # fmt: skip
         targets = np.array([self._ode.dJointGetHingeParam(j, PARAM_VEL) for j in self._joints])
         readings = (self.contact_forces().copy(), self.joint_torques().copy())
-        return bodies, targets, dict(self._applied), self._steps, readings
+        return bodies, targets, self._applied.copy(), self._steps, readings
 
     def restore_state(self, state: Any) -> None:
         bodies, targets, forces, self._steps, readings = state
@@ -276,7 +294,7 @@ class OdeBackend(PhysicsBackend):
             lib.dBodySetAngularVel(handle, *row[10:13])
         for joint, target in zip(self._joints, targets.tolist(), strict=True):
             lib.dJointSetHingeParam(joint, PARAM_VEL, target)
-        self._applied = dict(forces)
+        self._applied[:] = forces
         self._readings = readings
         self._read_angles()
 
@@ -299,20 +317,18 @@ class OdeBackend(PhysicsBackend):
     def _physics_step(self) -> None:
         """Drag and applied forces, ground contacts, one dWorldStep (the server's order)."""
         lib, world, group = self._ode, self._world, self._contacts
-        add_force, add_torque = lib.dBodyAddForce, lib.dBodyAddTorque
-        applied = self._applied
-        for i, (body, v, w) in enumerate(zip(self._bodies, self._linear, self._angular)):
-            fx, fy, fz = -DRAG * v[0], -DRAG * v[1], -DRAG * v[2]
-            if i in applied:
-                ax, ay, az = applied[i]
-                fx, fy, fz = fx + ax, fy + ay, fz + az
-            add_force(body, fx, fy, fz)
-            add_torque(body, -DRAG * w[0], -DRAG * w[1], -DRAG * w[2])
+        drag = np.concatenate(self._velocities).reshape(-1, 3)
+        drag *= -DRAG
+        drag += self._applied
+        for accumulator, load in zip(self._accumulators, drag):
+            accumulator[:] = load
         collide, create, attach = lib.dCollide, lib.dJointCreateContact, lib.dJointAttach
         set_feedback, plane, stride = lib.dJointSetFeedback, self._plane, self._stride
         touching = self._touching
         touching.clear()
         for g, geom in enumerate(self._geoms):
+            if self._geom_position[g][2] > self._reach[g]:
+                continue
             count = collide(geom, plane, MAX_CONTACTS, self._points[g], stride)
             if not count:
                 continue
@@ -417,11 +433,7 @@ class OdeBackend(PhysicsBackend):
         return self._templates[0][0].surface.mu
 
     def apply_force(self, body: str, force: Vec3) -> None:
-        index = self._index[body]
-        if any(force):
-            self._applied[index] = tuple(float(f) for f in force)
-        else:
-            self._applied.pop(index, None)
+        self._applied[self._index[body]] = force
 
     def push_root(self, velocity: Vec3) -> None:
         set_velocity = self._ode.dBodySetLinearVel
