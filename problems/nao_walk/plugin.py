@@ -71,7 +71,7 @@ PARAMS = (
           low=0, high=100),
     Param("friction", float, 0.0, "ground friction coefficient; inf = no sliding limit (the "
           "paper's simulator; ODE only); 0 = the engine's default (1 on MuJoCo and PyBullet, "
-          "inf on ODE); MuJoCo takes at most 3, PyBullet 1000", low=0.0),
+          "inf on ODE); MuJoCo takes at most 3, PyBullet 10", low=0.0),
     Param("slip", float, 5e-3, "force-dependent slip of the ground contacts, m/s per N "
           "(the paper's simulator: 0.005; 0 = none); only ODE has it, the others ignore it",
           low=0.0, high=1.0),

@@ -1,9 +1,11 @@
 """MuJoCo physics backend: builds an MJCF model from a RobotDescription and drives it.
 
 Each hinge gets a velocity actuator (force = KV * (command - joint speed), limited to
-±max_joint_torque), the analogue of the ODE hinge motor of rcssserver3d; the implicit-fast
-integrator keeps that stiff damping stable. The state (time, qpos, qvel, act, ctrl, warm start)
-is saved and restored with mj_getState/mj_setState, which reproduces a run bit for bit.
+±max_joint_torque), the nearest MuJoCo has to the ODE hinge motor of rcssserver3d (a constraint
+reaching its target speed within the step with at most 10 N·m); how near is measured in
+docs/nao-walk.md ("Motors") by benchmarks/motor_model.py. The state (time, qpos, qvel, act,
+ctrl, warm start, applied forces) is saved and restored with mj_getState/mj_setState, which
+reproduces a run bit for bit.
 render() draws offscreen with mujoco.Renderer (headless OpenGL: EGL, else OSMesa).
 """
 
@@ -42,12 +44,18 @@ from metaopt.physics import (
 )
 from metaopt_problems.physics.mujoco_backend import DEFAULT_SUBSTEPS
 
-#: Velocity-servo gain, N·m per rad/s: stiff enough that the torque limit, not the gain,
-#: decides how fast a joint follows its command (as ODE's motor constraint does).
-KV = 20.0
-#: Rotor inertia added to every hinge, kg·m². Without it the servo and the tiny mass-carrier
-#: spheres (I ~ 5e-6) set up a ±1° rocking limit cycle; stability needs about
-#: KV * timestep / ARMATURE <= 5 (so 0.02 at 4 substeps; see docs/nao-walk.md).
+#: Velocity-servo gain, N·m per rad/s. MuJoCo integrates the actuator implicitly only while
+#: its force is inside the force range; a clamped force acts explicitly for the whole step, so
+#: a joint overshoots its target by up to 10 N·m * timestep / inertia and chatters at the limit
+#: unless KV * timestep / ARMATURE stays near 2.5 or below. The old KV 20 at 0.005 s steps (5)
+#: chattered: the head commanded 3 rad/s alternated 2.4 and 4.9 rad/s, and some joint sat at
+#: the limit on 89-94 % of a fast gait's control steps. KV 40 at 0.00125 s steps (2.5) reaches
+#: a commanded speed within a control period without chatter and holds a joint twice as stiffly
+#: as before; fewer substeps bring the chatter back (docs/nao-walk.md, "Motors").
+KV = 40.0
+#: Rotor inertia added to every hinge, kg·m² (the server has none). Without it the servo and
+#: the tiny mass-carrier spheres (I ~ 5e-6) are unstable (KV >= 200 at 4 substeps) or rock the
+#: standing robot by 1-2.5° (KV 5-2000, 4-40 substeps); measured in docs/nao-walk.md.
 ARMATURE = 0.02
 _STATE = mujoco.mjtState.mjSTATE_INTEGRATION
 
@@ -160,7 +168,6 @@ class MujocoBackend(PhysicsBackend):
         self.data.qpos[2] = self.robot.start_height
         self._angles[:] = self.robot.rest_angles
         self.set_ground_friction(self.settings.friction)
-        mujoco.mj_forward(self.model, self.data)
 
     def step(self, joint_targets: np.ndarray) -> None:
         servo_velocities(joint_targets, self._angles, self.settings, self._command)
@@ -202,10 +209,40 @@ class MujocoBackend(PhysicsBackend):
     def time(self) -> float:
         return self.data.time
 
+    def joint_velocities(self) -> np.ndarray:
+        return self.data.qvel[6 : 6 + len(self.robot.hinges)].copy()
+
+    def joint_torques(self) -> np.ndarray:
+        # One actuator per hinge, in joint order; the force after the force-range clamp.
+        return self.data.actuator_force.copy()
+
+    def body_mass(self, name: str) -> float:
+        return float(self.model.body_mass[self.model.body(name).id])
+
+    def body_inertia(self, name: str) -> Vec3:
+        moments = self.model.body_inertia[self.model.body(name).id]
+        return (float(moments[0]), float(moments[1]), float(moments[2]))
+
+    def ground_friction(self) -> float:
+        """The sliding coefficient of the robot's ground contacts now; without any, the one a
+        contact of a foot would get (MuJoCo takes the larger of the two geoms' coefficients)."""
+        if self.data.ncon:
+            return float(max(self.data.contact[i].friction[0] for i in range(self.data.ncon)))
+        foot = self.model.body(self.robot.contact_bodies[0]).id
+        geoms = self.model.geom_bodyid == foot
+        floor = self.model.geom("floor").id
+        return float(max(self.model.geom_friction[geoms, 0].max(),
+                         self.model.geom_friction[floor, 0]))  # fmt: skip
+
+    def apply_force(self, body: str, force: Vec3) -> None:
+        # xfrc_applied acts at the body's centre of mass and is part of mjSTATE_INTEGRATION.
+        self.data.xfrc_applied[self.model.body(body).id, :3] = force
+
     # A contact takes the larger of its two geoms' coefficients, and the robot's geoms touch
     # only the floor, so every geom gets mu.
     def set_ground_friction(self, mu: float) -> None:
         self.model.geom_friction[:, 0] = mu
+        mujoco.mj_forward(self.model, self.data)  # the contacts now carry the new coefficient
 
     def push_root(self, velocity: Vec3) -> None:
         self.data.qvel[0:3] += velocity  # the free joint's linear velocity is in world axes
