@@ -10,9 +10,10 @@ For each backend, prints simulated seconds per wall second for
 and their ratio, counting the 12 s walking phase each actually simulates (the lock phase is
 simulated once per process). Then it times the whole study the README runs,
 `metaopt run --optimizer hs --problem nao-walk --budget 750`, pinned to one core (target: at
-most 90 s with MuJoCo). Usage:
+most 90 s with MuJoCo; --run-backends mujoco,ode times it on several engines). Every engine
+runs at its default friction (ODE: the server's infinite friction with slip). Usage:
 
-    python benchmarks/episode_throughput.py [--episodes N] [--backends mujoco,pybullet]
+    python benchmarks/episode_throughput.py [--episodes N] [--backends mujoco,pybullet,ode]
                                             [--run-backends mujoco] [--seed S]
 """
 
@@ -38,7 +39,8 @@ from metaopt_problems.nao_walk.stored_gaits import gait_vector, load_gait
 def measure(backend: str, episodes: int) -> dict[str, float]:
     """Best-of-`episodes` wall time of a walking episode and of its open-loop replay, taken
     alternately so that load from other processes hits both alike."""
-    engine = registry().physics_backend(backend).factory(nao(), PhysicsSettings())
+    info = registry().physics_backend(backend)
+    engine = info.factory(nao(), PhysicsSettings(friction=info.default_friction))
     runner = EpisodeRunner(engine, EpisodeSettings())
     gait = NaoWalk(backend=backend).gait(gait_vector(load_gait()))
     recorded = runner.run(gait, record=True)  # also simulates and stores the lock phase
@@ -83,7 +85,8 @@ def time_full_run(backend: str, seed: int) -> float:
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--episodes", type=int, default=5)
-    parser.add_argument("--backends", default=",".join(registry().physics_backends))
+    available = [n for n, info in registry().physics_backends.items() if not info.unavailable]
+    parser.add_argument("--backends", default=",".join(available))
     parser.add_argument("--run-backends", default="mujoco", help="'' to skip the 750-run timing")
     parser.add_argument("--seed", type=int, default=1)
     args = parser.parse_args()
@@ -93,7 +96,7 @@ def main() -> None:
         m = measure(name, args.episodes)
         print(f"{name:<10} {m['episode_s']:>11.3f}s {m['episode_rate']:>16.1f} "
               f"{m['physics_rate']:>16.1f} {m['ratio']:>6.2f}")  # fmt: skip
-    print("targets: ratio >= 0.85 (mujoco), >= 0.9 (pybullet)")
+    print("targets: ratio >= 0.85 (mujoco), >= 0.9 (pybullet, ode)")
     for name in filter(None, args.run_backends.split(",")):
         wall = time_full_run(name, args.seed)
         command = f"metaopt run -o hs -p nao-walk --budget 750 --set backend={name}"

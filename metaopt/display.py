@@ -10,6 +10,7 @@ from typing import Any
 
 from rich import box
 from rich.console import Console
+from rich.markup import escape
 from rich.progress import (
     BarColumn,
     MofNCompleteColumn,
@@ -58,6 +59,8 @@ def plugin_overview(kind: str, infos: Sequence, sources: Sequence[str]) -> Table
     table.add_column("summary / meaning", overflow="fold")
     for info, source in zip(infos, sources):
         summary = f"{info.summary} [dim](from {source})[/]"
+        if getattr(info, "unavailable", ""):
+            summary = f"[bold red]unavailable:[/] {escape(info.unavailable)}\n{summary}"
         table.add_row(f"[bold cyan]{info.name}[/]", "", "", "", summary)
         for p in getattr(info, "params", ()):
             table.add_row(f"  {p.name}", p.type_name, str(p.default), p.range_text(), p.help)

@@ -82,8 +82,10 @@ def default_robot() -> RobotDescription:
 def engine(
     backend: str | BackendInfo, robot: RobotDescription | None = None, **settings: float
 ) -> Iterator[PhysicsBackend]:
-    """A fresh simulation of robot (the NAO by default) on the named engine, closed after use."""
+    """A fresh simulation of robot (the NAO by default) on the named engine, closed after use,
+    at the engine's default friction unless settings name one."""
     info = registry().physics_backend(backend) if isinstance(backend, str) else backend
+    settings = {"friction": info.default_friction, **settings}
     simulation = info.factory(robot or default_robot(), PhysicsSettings(**settings))
     try:
         yield simulation

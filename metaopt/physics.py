@@ -183,6 +183,9 @@ class PhysicsSettings:
     """Engine-independent simulation settings (documented defaults in docs/nao-walk.md).
 
     ``substeps`` 0 means the backend's own default (BackendInfo.default_substeps).
+    ``friction`` is a Coulomb coefficient; math.inf means no sliding limit (where the engine
+    handles it: BackendInfo.max_friction). ``slip`` is ODE's force-dependent slip, m/s per N
+    of contact force (rcssserver3d's 5e-3; 0 = none); engines without it ignore it.
     """
 
     control_period: float = 0.02
@@ -191,6 +194,7 @@ class PhysicsSettings:
     max_joint_speed: float = 6.1395
     max_joint_torque: float = 10.0
     friction: float = 1.0
+    slip: float = 5e-3
 
     def timestep(self, default_substeps: int) -> float:
         """Physics step = control_period / substeps (the backend's default when 0)."""
@@ -328,7 +332,10 @@ class BackendInfo:
 
     ``default_substeps`` is the number of physics steps per control period the engine uses
     when PhysicsSettings.substeps is 0; ``max_friction`` the largest ground friction
-    coefficient its contact model handles (problems refuse a larger one up front).
+    coefficient its contact model handles (problems refuse a larger one up front; math.inf:
+    unlimited friction too); ``default_friction`` the coefficient a problem uses on it unless
+    told otherwise. ``unavailable``, when not empty, says in one line why the engine cannot
+    run here and how to install what it needs (it is listed, but not used).
     """
 
     name: str
@@ -336,6 +343,8 @@ class BackendInfo:
     factory: Callable[[RobotDescription, PhysicsSettings], PhysicsBackend]
     default_substeps: int = 10
     max_friction: float = math.inf
+    default_friction: float = 1.0
+    unavailable: str = ""
 
 
 #: A robot problem's ``backend`` parameter may name several engines joined by this, to be

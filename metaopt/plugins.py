@@ -79,8 +79,12 @@ class Registry:
         return _lookup(self.executors, name, "executor")
 
     def physics_backend(self, name: str):
-        """The BackendInfo called name, or a ConfigError listing the installed ones."""
-        return _lookup(self.physics_backends, name, "physics backend")
+        """The BackendInfo called name, or a ConfigError listing the installed ones (or saying
+        what the engine needs, when it cannot run here)."""
+        info = _lookup(self.physics_backends, name, "physics backend")
+        if info.unavailable:
+            raise ConfigError(f"physics backend {name!r} is unavailable: {info.unavailable}")
+        return info
 
     def tables(self) -> dict[str, dict[str, Any]]:
         """Every kind's table by the kind's name."""

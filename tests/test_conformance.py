@@ -26,7 +26,8 @@ def _problem_settings() -> list[tuple[str, str, dict]]:
         if name == "nao-walk":
             settings += [
                 (f"{name}-{backend}", name, {"duration": 2.0, "lock": 1.0, "backend": backend})
-                for backend in PLUGINS.physics_backends
+                for backend, info in PLUGINS.physics_backends.items()
+                if not info.unavailable
             ]
         else:
             settings.append((name, name, {}))

@@ -15,6 +15,18 @@ from metaopt.plugins import registry
 from metaopt.testing import ConformanceError, engine_checks
 
 ENGINES = list(registry().physics_backends)
+#: Measured disagreements an engine is known to have, with why (strict: fixed ones show up).
+KNOWN_DISAGREEMENTS = {
+    ("ode", "motor_response"): "the 400 N push on the 0.2 kg forearm also loads the shoulder "
+    "roll far over its 10 N·m motor, and within ODE's one 20 ms step the arm spins past its "
+    "stops (shoulder roll -124°, 209 rad/s), so the elbow reads 3.56 N·m that step; at "
+    "substeps=2 it reads 10.0 (docs/nao-walk.md, ODE)",
+}
+
+
+def _marks(name: str, check: str) -> list:
+    reason = KNOWN_DISAGREEMENTS.get((name, check))
+    return [pytest.mark.xfail(strict=True, reason=reason)] if reason else []
 
 
 def _missing_library(name: str) -> str | None:
@@ -28,8 +40,8 @@ def _missing_library(name: str) -> str | None:
 
 @pytest.mark.parametrize(
     ("name", "check"),
-    [pytest.param(name, check, id=f"{name}-{check}") for name in ENGINES
-     for check in engine_checks(name)],
+    [pytest.param(name, check, id=f"{name}-{check}", marks=_marks(name, check))
+     for name in ENGINES for check in engine_checks(name)],
 )  # fmt: skip
 def test_engine_agrees(name: str, check: str) -> None:
     reason = _missing_library(name)

@@ -135,8 +135,8 @@ def test_paper_fitness_is_eq_9_as_printed() -> None:
 
 def test_problem_rejects_unknown_backend_and_bad_timing() -> None:
     info = registry().problem("nao-walk")
-    with pytest.raises(ConfigError, match="Installed: mujoco, pybullet"):
-        info.factory(backend="ode")
+    with pytest.raises(ConfigError, match="Installed: mujoco, ode, pybullet"):
+        info.factory(backend="bullet")
     with pytest.raises(ConfigError, match="lock"):
         info.factory(duration=3.0, lock=3.0)
 
@@ -175,7 +175,7 @@ def test_friction_parameter_sets_the_ground_friction(backend: str) -> None:
     assert metrics[None] == metrics[1.0]
     assert metrics[0.05] != metrics[1.0]
     with pytest.raises(ConfigError, match="friction"):
-        resolve(info.params, {"friction": 0.0}, "nao-walk")
+        resolve(info.params, {"friction": -1.0}, "nao-walk")
 
 
 def test_a_friction_the_backend_cannot_stand_on_is_refused_up_front() -> None:

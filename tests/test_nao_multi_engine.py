@@ -65,7 +65,7 @@ def test_engines_are_built_on_first_use_and_not_pickled() -> None:
 @pytest.mark.parametrize(
     ("backend", "message"),
     [
-        ("mujoco+bulet", "unknown physics backend 'bulet'.* Installed: mujoco, pybullet"),
+        ("mujoco+bulet", "unknown physics backend 'bulet'.* Installed: mujoco, ode, pybullet"),
         ("mujoco+", "unknown physics backend ''"),
         ("mujoco+mujoco", "names an engine twice"),
     ],

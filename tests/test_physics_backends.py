@@ -15,11 +15,20 @@ from metaopt.errors import ConfigError, EvaluationError
 from metaopt.physics import PhysicsBackend, PhysicsSettings
 from metaopt.plugins import registry
 from metaopt_problems.nao_walk.robot import nao
+from tests.engines import needs_ode
 
 BACKENDS = ("mujoco", "pybullet")
+#: Every engine, ODE where its library is installed (.ci/run installs it).
+ENGINES = (*BACKENDS, pytest.param("ode", marks=needs_ode))
+#: Why ODE's elbow does not read a steady 5 N·m under the 100 N load below.
+ODE_ONE_STEP_LOAD = (
+    "the 100 N also loads the shoulder roll with 14 N·m, over its 10 N·m motor, and at ODE's "
+    "one 20 ms step the arm swings within the step: the elbow reads 3.6 and 6.5 N·m on "
+    "alternate steps (mean 5.0)"
+)
 
 
-@pytest.fixture(params=BACKENDS)
+@pytest.fixture(params=ENGINES)
 def backend(request: pytest.FixtureRequest) -> Iterator[PhysicsBackend]:
     engine = registry().physics_backend(request.param).factory(nao(), PhysicsSettings())
     yield engine
@@ -61,8 +70,10 @@ def _construction_pose(engine: PhysicsBackend) -> None:
             pybullet.resetJointState(engine._robot, joint, 0.0, physicsClientId=engine._client)
 
 
-def test_model_matches_the_description(backend: PhysicsBackend) -> None:
+@pytest.mark.parametrize("name", BACKENDS)
+def test_model_matches_the_description(name: str) -> None:
     robot = nao()
+    backend = registry().physics_backend(name).factory(robot, PhysicsSettings())
     _construction_pose(backend)
     mass, limits, height = _model_mass_and_limits(backend)
     assert mass == pytest.approx(4.6071, abs=1e-6)
@@ -70,6 +81,7 @@ def test_model_matches_the_description(backend: PhysicsBackend) -> None:
     for h in robot.hinges:
         assert limits[h.name] == pytest.approx((h.lower, h.upper), abs=1e-9)
     assert height == pytest.approx(0.605, abs=1e-6)
+    backend.close()
 
 
 def _tilt_degrees(engine: PhysicsBackend) -> float:
@@ -139,8 +151,8 @@ def test_non_finite_targets_are_an_evaluation_error(backend: PhysicsBackend) -> 
 
 
 def test_unknown_backend_lists_the_installed_ones() -> None:
-    with pytest.raises(ConfigError, match="Installed: mujoco, pybullet"):
-        registry().physics_backend("ode")
+    with pytest.raises(ConfigError, match="Installed: mujoco, ode, pybullet"):
+        registry().physics_backend("bullet")
 
 
 def test_mass_and_inertia_read_back_equal_the_description(backend: PhysicsBackend) -> None:
@@ -164,10 +176,14 @@ def test_joint_velocities_read_back(backend: PhysicsBackend) -> None:
     assert backend.joint_velocities()[arm] > 1.0
 
 
-def test_joint_torques_read_back_a_known_load(backend: PhysicsBackend) -> None:
+def test_joint_torques_read_back_a_known_load(
+    backend: PhysicsBackend, request: pytest.FixtureRequest
+) -> None:
     """Equal and opposite forces of 100 N on the left lower arm (its centre 5 cm from the elbow
     axis) and on the torso load the elbow alone with 5 N·m about z, below the torque limit:
     the elbow's motor holds it with 5 N·m (5 %: the arm sags a little, changing the lever)."""
+    if request.node.callspec.params["backend"] == "ode":
+        request.applymarker(pytest.mark.xfail(strict=True, reason=ODE_ONE_STEP_LOAD))
     robot = backend.robot
     for _ in range(10):
         backend.step(robot.rest_angles)
@@ -234,7 +250,16 @@ def test_every_pybullet_link_has_friction_one_and_the_ground_the_setting() -> No
         engine.close()
 
 
-@pytest.mark.parametrize("name", BACKENDS)
+#: ODE's friction pyramid (dContactApprox1) under dWorldStep is not exact Coulomb friction.
+ODE_APPROX1 = pytest.mark.xfail(
+    strict=True,
+    reason="measured: at mu = 1, feet pushed with 1.5 mu·m·g are held by 67.8 N of friction "
+    "on a 45.2 N normal force (dWorldStep's LCP bounds the friction rows approximately); "
+    "exact Coulomb sliding at mu = 0.1 (docs/nao-walk.md, ODE)",
+)
+
+
+@pytest.mark.parametrize("name", [*BACKENDS, pytest.param("ode", marks=[needs_ode, ODE_APPROX1])])
 @pytest.mark.parametrize("mu", [0.5, 1.0])
 def test_the_feet_slide_at_the_force_friction_predicts(name: str, mu: float) -> None:
     """Pushed 15 % beyond μ·m·g the feet slide as friction μ predicts; at 90 % they hold."""

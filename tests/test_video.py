@@ -1,4 +1,4 @@
-"""`metaopt replay --video`: both engines render headless, the camera follows the torso, and the
+"""`metaopt replay --video`: every engine renders headless, the camera follows the torso, and the
 MP4 holds one frame per 1/25 s of the walk."""
 
 from __future__ import annotations
@@ -20,6 +20,7 @@ from metaopt.video import VIDEO_FPS, film_best
 from metaopt_problems.nao_walk.robot import nao
 from metaopt_problems.nao_walk.stored_gaits import gait_vector, load_gait
 from metaopt_problems.nao_walk.video import CAMERA_TARGET_HEIGHT, film
+from tests.engines import needs_ode
 from tests.walk_runs import store_walk_run
 
 #: MuJoCo renders offscreen through a system OpenGL library (.ci/run installs Mesa's EGL);
@@ -35,6 +36,14 @@ ENGINES = (
         ),
     ),
     "pybullet",
+    # ODE cannot draw: its poses are drawn through MuJoCo's renderer.
+    pytest.param(
+        "ode",
+        marks=[
+            needs_ode,
+            pytest.mark.skipif(not HEADLESS_GL, reason="ODE's video draws with MuJoCo"),
+        ],
+    ),
 )
 
 

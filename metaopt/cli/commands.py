@@ -123,6 +123,8 @@ def list_plugins(name: str | None) -> None:
     kind, info = plugins.any_kind(name)  # raises with close matches of every kind
     console.print(f"[bold cyan]{info.name}[/] ({kind}): {info.summary}")
     if kind not in ("optimizer", "problem"):
+        if getattr(info, "unavailable", None):
+            console.print(f"unavailable: {info.unavailable}", markup=False)
         return
     if info.description:
         console.print(display.reflow(info.description), markup=False)

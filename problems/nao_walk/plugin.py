@@ -69,9 +69,12 @@ PARAMS = (
     Param("lock", float, 3.0, "seconds the robot stands with the controller off", low=0.0),
     Param("substeps", int, 0, "physics steps per 20 ms control period; 0 = the engine's default",
           low=0, high=100),
-    Param("friction", float, 1.0, "ground friction coefficient (the paper's simulator: no "
-          "sliding limit; PyBullet takes 100, MuJoCo at most 3)", low=0.0, high=1000.0,
-          low_open=True),
+    Param("friction", float, 0.0, "ground friction coefficient; inf = no sliding limit (the "
+          "paper's simulator; ODE only); 0 = the engine's default (1 on MuJoCo and PyBullet, "
+          "inf on ODE); MuJoCo takes at most 3, PyBullet 10", low=0.0),
+    Param("slip", float, 5e-3, "force-dependent slip of the ground contacts, m/s per N "
+          "(the paper's simulator: 0.005; 0 = none); only ODE has it, the others ignore it",
+          low=0.0, high=1.0),
     Param("servo_gain", float, 10.0, "joint velocity command per radian of angle error, 1/s",
           low=0.0, low_open=True),
     Param("fall_height", float, 0.25, "fallen when the torso centre is lower than this, m",
@@ -99,7 +102,8 @@ class NaoWalk(Problem):
         duration: float = 15.0,
         lock: float = 3.0,
         substeps: int = 0,
-        friction: float = 1.0,
+        friction: float = 0.0,
+        slip: float = 5e-3,
         servo_gain: float = 10.0,
         fall_height: float = 0.25,
         fall_tilt: float = 60.0,
@@ -114,12 +118,18 @@ class NaoWalk(Problem):
         self.backend_infos = {name: registry().physics_backend(name) for name in self.engines}
         if len(self.backend_infos) < len(self.engines):
             raise ConfigError(f"nao-walk: backend {backend!r} names an engine twice")
+        #: each engine's physics settings (they differ in the default friction only)
+        self.physics_on: dict[str, PhysicsSettings] = {}
         for name, info in self.backend_infos.items():
-            if friction > info.max_friction:
+            mu = friction or info.default_friction
+            if mu > info.max_friction:
                 raise ConfigError(
-                    f"nao-walk: friction {friction} is more than the {name} backend handles "
+                    f"nao-walk: friction {mu} is more than the {name} backend handles "
                     f"(at most {info.max_friction}); use a smaller one or another backend"
                 )
+            self.physics_on[name] = PhysicsSettings(
+                substeps=substeps, servo_gain=servo_gain, friction=mu, slip=slip
+            )
         if controller not in CONTROLLERS:
             raise ConfigError(
                 f"nao-walk: unknown controller {controller!r}; accepted: {', '.join(CONTROLLERS)}"
@@ -127,7 +137,8 @@ class NaoWalk(Problem):
         self.controller = controller
         self.space = CONTROLLER_KINDS[controller].space()
         self.fitness_kind = fitness
-        self.physics = PhysicsSettings(substeps=substeps, servo_gain=servo_gain, friction=friction)
+        #: the first engine's physics settings
+        self.physics = self.physics_on[self.engines[0]]
         self.episode = EpisodeSettings(duration, lock, fall_height, fall_tilt)
         self.noise = noise
         self.robot = nao()
@@ -149,7 +160,7 @@ class NaoWalk(Problem):
         process)."""
         runner = self._runners.get(engine)
         if runner is None:
-            backend = self.backend_infos[engine].factory(self.robot, self.physics)
+            backend = self.backend_infos[engine].factory(self.robot, self.physics_on[engine])
             runner = self._runners[engine] = EpisodeRunner(backend, self.episode)
         return runner
 
@@ -157,11 +168,13 @@ class NaoWalk(Problem):
         """The controller for decision vector x (space order)."""
         return CONTROLLER_KINDS[self.controller].build([float(v) for v in x], self._limits)
 
-    def disturbance(self, seed: int) -> Disturbance | None:
-        """The episode conditions seed draws at this problem's noise (None when noise is 0)."""
+    def disturbance(self, seed: int, engine: str | None = None) -> Disturbance | None:
+        """The episode conditions seed draws at this problem's noise (None when noise is 0)
+        on engine (default: the first); engines differ only in their nominal friction."""
         if self.noise == 0:
             return None
-        return Disturbance.draw(self.noise, seed, self.physics.friction, self.runner.walk_steps)
+        friction = self.physics_on[engine or self.engines[0]].friction
+        return Disturbance.draw(self.noise, seed, friction, self.runner.walk_steps)
 
     def evaluate(self, x: np.ndarray, seed: int) -> Evaluation:
         gait = self.gait(x)
@@ -176,7 +189,7 @@ class NaoWalk(Problem):
         return Evaluation(worst.fitness, metrics)
 
     def _evaluate_on(self, engine: str, gait: Gait, seed: int) -> Evaluation:
-        result = self.runner_on(engine).run(gait, disturbance=self.disturbance(seed))
+        result = self.runner_on(engine).run(gait, disturbance=self.disturbance(seed, engine))
         value = fitness(result, self.fitness_kind, self.episode.duration)
         return Evaluation(value, result.metrics())
 
@@ -214,7 +227,8 @@ def metaopt_problems() -> list[ProblemInfo]:
     return [
         ProblemInfo(
             name="nao-walk",
-            summary="NAO biped walking with a Matsuoka CPG (the paper's task), MuJoCo or PyBullet",
+            summary="NAO biped walking with a Matsuoka CPG (the paper's task), MuJoCo, PyBullet "
+            "or ODE",
             factory=NaoWalk,
             params=PARAMS,
             description=(
