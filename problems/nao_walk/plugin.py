@@ -5,7 +5,9 @@ controller.cpg_space; extended.py's controllers with ``controller``); evaluate r
 15 s episode (episode.py) on the chosen physics backend and returns the fitness and metrics.
 With several backends joined by '+' (``mujoco+pybullet``) it runs the episode on each: the
 fitness and the plain metrics are the worst engine's, and every engine's metrics are added as
-``NAME@ENGINE``.
+``NAME@ENGINE``. Perturbations (docs/robustness.md): friction, servo gain, a mass scale (the
+robot description's bodies scaled before any engine is built), a push on the torso, sensor
+latency, and the seed-drawn noise.
 """
 
 from __future__ import annotations
@@ -27,7 +29,15 @@ if TYPE_CHECKING:
     from matplotlib.figure import Figure
 
 from .controller import MatsuokaCpg, cpg_space
-from .episode import FITNESS_KINDS, Disturbance, EpisodeRunner, EpisodeSettings, Gait, fitness
+from .episode import (
+    FITNESS_KINDS,
+    Disturbance,
+    EpisodeRunner,
+    EpisodeSettings,
+    Gait,
+    Push,
+    fitness,
+)
 from .extended import ExtendedCpg, StrideCpg, extended_space, stride_space
 from .robot import nao
 from .video import film
@@ -80,6 +90,18 @@ PARAMS = (
           low=0.0, high=180.0, low_open=True),
     Param("noise", float, 0.0, "disturbance scale drawn from the evaluation's seed: friction, "
           "push, hip sensors (docs/nao-walk.md, Noise); 0 = deterministic", low=0.0, high=10.0),
+    Param("mass_scale", float, 1.0, "every body's mass and inertia multiplied by this",
+          low=0.1, high=10.0),
+    Param("push", float, 0.0, "impulse on the torso, N·s, over one control period at "
+          "push_time; 0 = none", low=0.0, high=100.0),
+    Param("push_direction", float, 0.0, "direction of the push, degrees from forward "
+          "(90 = to the left)", low=-360.0, high=360.0),
+    Param("push_time", float, 6.0, "episode time of the push, s (within the walking phase)",
+          low=0.0),
+    Param("latency", int, 0, "sensor latency: the controller reads what was measured this "
+          "many 20 ms control steps earlier", low=0, high=50),
+    Param("measure_flight", bool, False, "also measure the metric flight: the share of the "
+          "walking phase after 2 s with neither foot on the ground (a contact query per step)"),
 )  # fmt: skip
 
 
@@ -104,10 +126,21 @@ class NaoWalk(Problem):
         fall_height: float = 0.25,
         fall_tilt: float = 60.0,
         noise: float = 0.0,
+        mass_scale: float = 1.0,
+        push: float = 0.0,
+        push_direction: float = 0.0,
+        push_time: float = 6.0,
+        latency: int = 0,
+        measure_flight: bool = False,
     ) -> None:
         if lock >= duration:
             raise ConfigError(
                 f"nao-walk: lock ({lock} s) must be shorter than duration ({duration} s)"
+            )
+        if push and not lock <= push_time < duration:
+            raise ConfigError(
+                f"nao-walk: push_time ({push_time} s) must fall within the walking phase, "
+                f"from lock ({lock} s) to before duration ({duration} s)"
             )
         self.engines = engine_names(backend)
         #: ConfigError for an engine that is not installed, listing the installed ones
@@ -128,9 +161,12 @@ class NaoWalk(Problem):
         self.space = CONTROLLER_KINDS[controller].space()
         self.fitness_kind = fitness
         self.physics = PhysicsSettings(substeps=substeps, servo_gain=servo_gain, friction=friction)
-        self.episode = EpisodeSettings(duration, lock, fall_height, fall_tilt)
+        shove = Push(push, push_direction, push_time) if push else None
+        self.episode = EpisodeSettings(
+            duration, lock, fall_height, fall_tilt, shove, latency, measure_flight
+        )
         self.noise = noise
-        self.robot = nao()
+        self.robot = nao().with_mass_scale(mass_scale) if mass_scale != 1 else nao()
         self._limits = {hinge.name: (hinge.lower, hinge.upper) for hinge in self.robot.hinges}
         self._runners: dict[str, EpisodeRunner] = {}
 
