@@ -20,6 +20,7 @@ from metaopt.cli_common import (
 from metaopt.cli_compare import compare
 from metaopt.cli_new import new
 from metaopt.cli_report import report, write_replay_video
+from metaopt.cli_robustness import robustness_command
 from metaopt.errors import MetaoptError
 from metaopt.export import FORMATS, export_run
 from metaopt.plugins import registry
@@ -301,3 +302,4 @@ def replay_command(
 main.add_command(new)
 main.add_command(report)
 main.add_command(compare)
+main.add_command(robustness_command)

@@ -228,3 +228,26 @@ def reflow(text: str) -> str:
                 lines.append(stripped)
         paragraphs.append("\n".join(lines))
     return "\n\n".join(paragraphs)
+
+
+def robustness_table(label: str, version: str, results: Sequence, metrics: Sequence[str]) -> Table:
+    """`metaopt robustness`: per perturbation and engine, each metric's median over the seeds
+    (a rate: its value), with the first metric's interquartile range."""
+    table = Table(title=f"{label}: perturbation table {version}", title_justify="left")
+    table.add_column("perturbation")
+    table.add_column("engine")
+    table.add_column("seeds", justify="right")
+    table.add_column(f"{metrics[0]} (median)", justify="right")
+    table.add_column("IQR", justify="right")
+    for metric in metrics[1:]:
+        table.add_column(metric if metric.startswith("fell") else f"{metric} (median)",
+                         justify="right")  # fmt: skip
+    for result in results:
+        median, low, high = result.summary(metrics[0])
+        cells = [f"{median:.3f}", f"{low:.3f}-{high:.3f}"]
+        for metric in metrics[1:]:
+            value = result.summary(metric)[0]
+            cells.append(f"{value:.0%}" if metric.startswith("fell") else f"{value:.3f}")
+        seeds = f"{len(result.samples)}" + (f" ({result.failed} failed)" if result.failed else "")
+        table.add_row(result.cell, result.engine, seeds, *cells)
+    return table

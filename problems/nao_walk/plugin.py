@@ -22,7 +22,7 @@ from metaopt.errors import ConfigError
 from metaopt.params import Param
 from metaopt.physics import PhysicsSettings, engine_names
 from metaopt.plugins import registry
-from metaopt.problem import Evaluation, Problem, ProblemInfo, Sense
+from metaopt.problem import Evaluation, Problem, ProblemInfo, Sense, StoredCandidate
 from metaopt.space import Space
 
 if TYPE_CHECKING:
@@ -40,6 +40,7 @@ from .episode import (
 )
 from .extended import ExtendedCpg, StrideCpg, extended_space, stride_space
 from .robot import nao
+from .robustness import STANDARD_TABLE
 from .video import film
 
 
@@ -239,6 +240,12 @@ class NaoWalk(Problem):
         return {**self.__dict__, "_runners": {}}
 
 
+def _stored_gaits() -> dict[str, StoredCandidate]:
+    from .stored_gaits import stored_candidates  # stored_gaits imports this module
+
+    return stored_candidates()
+
+
 @hookimpl
 def metaopt_problems() -> list[ProblemInfo]:
     """Announce nao-walk."""
@@ -256,5 +263,7 @@ def metaopt_problems() -> list[ProblemInfo]:
                 "docs/nao-walk.md."
             ),
             default_budget=750,
+            perturbations=STANDARD_TABLE,
+            stored_candidates=_stored_gaits,
         )
     ]

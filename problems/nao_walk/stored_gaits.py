@@ -7,6 +7,8 @@ from importlib.resources import files
 
 import numpy as np
 
+from metaopt.problem import StoredCandidate
+
 from .plugin import CONTROLLER_KINDS, NaoWalk
 
 #: The engines a record's metrics cover.
@@ -38,6 +40,22 @@ def gait_vector(record: dict) -> np.ndarray:
     return np.array([record["parameters"][name] for name in names], dtype=float)
 
 
+def gait_seed(record: dict) -> int:
+    """The seed of the evaluation a stored gait was found with (older records name only the
+    run's seed)."""
+    found_by = record["found_by"]
+    return found_by.get("evaluation_seed", found_by["seed"])
+
+
+def stored_candidates() -> dict[str, StoredCandidate]:
+    """Every stored gait as nao-walk announces it (for ``metaopt robustness GAIT``)."""
+    records = {name: load_gait(name) for name in stored_gait_names()}
+    return {
+        name: StoredCandidate(record["problem_params"], gait_vector(record), gait_seed(record))
+        for name, record in records.items()
+    }
+
+
 def gait_problem(problem_params: dict, engine: str) -> NaoWalk:
     """A fresh nao-walk problem made with problem_params, backend replaced by engine."""
     from metaopt.params import resolve
@@ -60,6 +78,4 @@ def gait_metrics(problem_params: dict, x: np.ndarray, seed: int, engine: str) ->
 def replay_gait(record: dict, engine: str) -> dict:
     """A stored gait's metrics on engine, re-run as it was found (its evaluation's seed; older
     records name only the run's seed)."""
-    found_by = record["found_by"]
-    seed = found_by.get("evaluation_seed", found_by["seed"])
-    return gait_metrics(record["problem_params"], gait_vector(record), seed, engine)
+    return gait_metrics(record["problem_params"], gait_vector(record), gait_seed(record), engine)
