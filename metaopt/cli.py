@@ -129,6 +129,11 @@ def list_plugins(name: str | None) -> None:
     help="How resampled fitnesses combine.",
 )
 @click.option(
+    "--common-seeds",
+    is_flag=True,
+    help="Evaluate every candidate on the same --resample seeds (common random numbers).",
+)
+@click.option(
     "--time-limit",
     type=float,
     default=None,
@@ -146,6 +151,7 @@ def run_command(
     batch: int,
     resample: int,
     aggregate: str,
+    common_seeds: bool,
     time_limit: float | None,
     executor: str | None,
     workers: int | None,
@@ -164,7 +170,7 @@ def run_command(
         seed=secrets.randbelow(2**31) if seed is None else seed,
         optimizer_params=optimizer_params,
         problem_params=problem_params,
-        settings=RunSettings(mode, batch, resample, aggregate, time_limit),
+        settings=RunSettings(mode, batch, resample, aggregate, time_limit, common_seeds),
     )
     if spec.budget < 1:
         raise click.BadParameter(f"must be at least 1, got {spec.budget}", param_hint="--budget")
