@@ -10,6 +10,7 @@ import numpy as np
 import pybullet
 import pytest
 
+from metaopt.engine_agreement import engine, measure_friction
 from metaopt.errors import ConfigError, EvaluationError
 from metaopt.physics import PhysicsBackend, PhysicsSettings
 from metaopt.plugins import registry
@@ -140,3 +141,105 @@ def test_non_finite_targets_are_an_evaluation_error(backend: PhysicsBackend) -> 
 def test_unknown_backend_lists_the_installed_ones() -> None:
     with pytest.raises(ConfigError, match="Installed: mujoco, pybullet"):
         registry().physics_backend("ode")
+
+
+def test_mass_and_inertia_read_back_equal_the_description(backend: PhysicsBackend) -> None:
+    for body in backend.robot.bodies:
+        assert backend.body_mass(body.name) == pytest.approx(body.mass, rel=1e-9)
+        assert backend.body_inertia(body.name) == pytest.approx(body.inertia, rel=1e-9)
+
+
+def test_joint_velocities_read_back(backend: PhysicsBackend) -> None:
+    """A swinging hip's measured velocity matches its angle's change over a control period
+    (the servo keeps the speed near constant within one)."""
+    robot = backend.robot
+    hip = robot.joint_index("llj3")
+    targets = robot.rest_angles
+    targets[hip] = 0.6
+    for _ in range(3):
+        before = backend.joint_angles()[hip]
+        backend.step(targets)
+    swing = (backend.joint_angles()[hip] - before) / backend.settings.control_period
+    assert backend.joint_velocities()[hip] == pytest.approx(swing, rel=0.1)
+    assert backend.joint_velocities()[hip] > 1.0
+
+
+def test_joint_torques_read_back_a_known_load(backend: PhysicsBackend) -> None:
+    """Equal and opposite forces of 100 N on the left lower arm (its centre 5 cm from the elbow
+    axis) and on the torso load the elbow alone with 5 N·m about z, below the torque limit:
+    the elbow's motor holds it with 5 N·m (5 %: the arm sags a little, changing the lever)."""
+    robot = backend.robot
+    for _ in range(10):
+        backend.step(robot.rest_angles)
+    elbow = robot.joint_index("laj4")
+    assert abs(backend.joint_torques()[elbow]) < 0.1  # gravity is along its axis
+    backend.apply_force("llowerarm", (0.0, -100.0, 0.0))
+    backend.apply_force(robot.root.name, (0.0, 100.0, 0.0))
+    for _ in range(10):
+        backend.step(robot.rest_angles)
+    assert backend.joint_torques()[elbow] == pytest.approx(5.0, rel=0.05)
+
+
+def _center_of_mass(engine: PhysicsBackend) -> np.ndarray:
+    bodies = engine.robot.bodies
+    weighted = sum(engine.body_mass(b.name) * engine.body_position(b.name) for b in bodies)
+    return weighted / sum(engine.body_mass(b.name) for b in bodies)
+
+
+def test_apply_force_changes_the_momentum_by_force_times_time(backend: PhysicsBackend) -> None:
+    """In flight (launched upward, nothing touches the ground), a horizontal force F on the
+    torso for 0.1 s leaves the robot coasting with momentum F * 0.1 s. The coast carries no
+    horizontal force, so the centre of mass's displacement over it measures the momentum
+    exactly but for the engines' joint-constraint drift (measured < 3e-4 of F * t): 1 %."""
+    robot, period = backend.robot, backend.settings.control_period
+    backend.push_root((0.0, 0.0, 3.0))  # about 0.6 s in the air
+    backend.step(robot.rest_angles)
+    force = (5.0, -2.0, 0.0)
+    backend.apply_force(robot.root.name, force)
+    pushed = backend.save_state()
+    backend.apply_force(robot.root.name, (0.0, 0.0, 0.0))
+    backend.restore_state(pushed)  # brings the force back
+    for _ in range(5):
+        backend.step(robot.rest_angles)
+    backend.apply_force(robot.root.name, (0.0, 0.0, 0.0))
+    start = _center_of_mass(backend)
+    for _ in range(5):
+        backend.step(robot.rest_angles)
+    assert not backend.contact_forces().any()
+    momentum = robot.total_mass * (_center_of_mass(backend) - start) / (5 * period)
+    assert momentum[:2] == pytest.approx(np.array(force[:2]) * 5 * period, rel=0.01, abs=1e-3)
+
+
+def test_ground_friction_reads_back_the_coefficient_set(backend: PhysicsBackend) -> None:
+    assert backend.ground_friction() == pytest.approx(1.0)
+    backend.step(backend.robot.rest_angles)
+    backend.set_ground_friction(0.7)
+    assert backend.ground_friction() == pytest.approx(0.7)
+    backend.reset()
+    assert backend.ground_friction() == pytest.approx(backend.settings.friction)
+
+
+def test_every_pybullet_link_has_friction_one_and_the_ground_the_setting() -> None:
+    """Read from PyBullet itself: the pair's coefficient is the product of the two bodies'."""
+    engine = registry().physics_backend("pybullet").factory(nao(), PhysicsSettings(friction=0.8))
+    try:
+        client = engine._client
+        links = [pybullet.getDynamicsInfo(engine._robot, link, physicsClientId=client)[1]
+                 for link in engine._links.values()]  # fmt: skip
+        assert links == [1.0] * len(nao().bodies)
+        assert pybullet.getDynamicsInfo(engine._plane, -1, physicsClientId=client)[1] == 0.8
+        engine.set_ground_friction(20.0)
+        assert engine.ground_friction() == 10.0  # Bullet clamps the pair's coefficient
+    finally:
+        engine.close()
+
+
+@pytest.mark.parametrize("name", BACKENDS)
+@pytest.mark.parametrize("mu", [0.5, 1.0])
+def test_the_feet_slide_at_the_force_friction_predicts(name: str, mu: float) -> None:
+    """Pushed 15 % beyond μ·m·g the feet slide as friction μ predicts; at 90 % they hold."""
+    with engine(name, friction=mu) as sim:
+        read, slide, creep = measure_friction(sim)
+    assert read.measured == pytest.approx(mu)
+    assert slide.agrees, slide.describe()
+    assert creep.agrees, creep.describe()

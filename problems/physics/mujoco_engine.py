@@ -160,7 +160,6 @@ class MujocoBackend(PhysicsBackend):
         self.data.qpos[2] = self.robot.start_height
         self._angles[:] = self.robot.rest_angles
         self.set_ground_friction(self.settings.friction)
-        mujoco.mj_forward(self.model, self.data)
 
     def step(self, joint_targets: np.ndarray) -> None:
         servo_velocities(joint_targets, self._angles, self.settings, self._command)
@@ -202,10 +201,40 @@ class MujocoBackend(PhysicsBackend):
     def time(self) -> float:
         return self.data.time
 
+    def joint_velocities(self) -> np.ndarray:
+        return self.data.qvel[6 : 6 + len(self.robot.hinges)].copy()
+
+    def joint_torques(self) -> np.ndarray:
+        # One actuator per hinge, in joint order; the force after the force-range clamp.
+        return self.data.actuator_force.copy()
+
+    def body_mass(self, name: str) -> float:
+        return float(self.model.body_mass[self.model.body(name).id])
+
+    def body_inertia(self, name: str) -> Vec3:
+        moments = self.model.body_inertia[self.model.body(name).id]
+        return (float(moments[0]), float(moments[1]), float(moments[2]))
+
+    def ground_friction(self) -> float:
+        """The sliding coefficient of the robot's ground contacts now; without any, the one a
+        contact of a foot would get (MuJoCo takes the larger of the two geoms' coefficients)."""
+        if self.data.ncon:
+            return float(max(self.data.contact[i].friction[0] for i in range(self.data.ncon)))
+        foot = self.model.body(self.robot.contact_bodies[0]).id
+        geoms = self.model.geom_bodyid == foot
+        floor = self.model.geom("floor").id
+        return float(max(self.model.geom_friction[geoms, 0].max(),
+                         self.model.geom_friction[floor, 0]))  # fmt: skip
+
+    def apply_force(self, body: str, force: Vec3) -> None:
+        # xfrc_applied acts at the body's centre of mass and is part of mjSTATE_INTEGRATION.
+        self.data.xfrc_applied[self.model.body(body).id, :3] = force
+
     # A contact takes the larger of its two geoms' coefficients, and the robot's geoms touch
     # only the floor, so every geom gets mu.
     def set_ground_friction(self, mu: float) -> None:
         self.model.geom_friction[:, 0] = mu
+        mujoco.mj_forward(self.model, self.data)  # the contacts now carry the new coefficient
 
     def push_root(self, velocity: Vec3) -> None:
         self.data.qvel[0:3] += velocity  # the free joint's linear velocity is in world axes

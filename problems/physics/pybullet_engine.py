@@ -1,8 +1,10 @@
 """PyBullet physics backend: builds a URDF from a RobotDescription and drives it.
 
 Each hinge is driven with VELOCITY_CONTROL and a force limit, PyBullet's analogue of the ODE
-hinge motor of rcssserver3d. One stepSimulation call advances a control period in ``substeps``
-sub-steps (setPhysicsEngineParameter numSubSteps). Every instance has its own DIRECT client.
+hinge motor of rcssserver3d. A control period is ``substeps`` stepSimulation calls of
+control_period / substeps each, not one call with numSubSteps: PyBullet sizes a motor's impulse
+limit (and divides its reported torques and contact forces) by the time step it was given, so
+with numSubSteps = 4 a 10 N·m motor held 40 N·m. Every instance has its own DIRECT client.
 render() uses PyBullet's built-in software renderer (TinyRenderer: no OpenGL needed).
 """
 
@@ -30,7 +32,11 @@ from metaopt.physics import (
     Vec3,
     servo_velocities,
 )
-from metaopt_problems.physics.pybullet_backend import DEFAULT_SUBSTEPS
+from metaopt_problems.physics.pybullet_backend import (
+    DEFAULT_SUBSTEPS,
+    MAX_FRICTION,
+    SOLVER_ITERATIONS,
+)
 
 
 def _vec(values) -> str:
@@ -94,8 +100,8 @@ class PybulletBackend(PhysicsBackend):
         self._substeps = substeps
         self._call = dict(physicsClientId=self._client)
         pybullet.setGravity(0, 0, -9.81, **self._call)
-        pybullet.setTimeStep(settings.control_period, **self._call)
-        pybullet.setPhysicsEngineParameter(numSubSteps=substeps, **self._call)
+        pybullet.setTimeStep(settings.control_period / substeps, **self._call)
+        pybullet.setPhysicsEngineParameter(numSolverIterations=SOLVER_ITERATIONS, **self._call)
         plane = pybullet.createCollisionShape(pybullet.GEOM_PLANE, **self._call)
         self._plane = pybullet.createMultiBody(0, plane, **self._call)
         with tempfile.NamedTemporaryFile("w", suffix=".urdf", delete=False) as file:
@@ -114,12 +120,13 @@ class PybulletBackend(PhysicsBackend):
         self._joints = [link_of[h.child] for h in robot.hinges]
         self._feet = [link_of[name] for name in robot.contact_bodies]
         # PyBullet multiplies the two bodies' coefficients: the robot's are 1, so the
-        # ground's (set_ground_friction) is the pair's.
+        # ground's (set_ground_friction) is the pair's. Friction gets its own call: given
+        # together with the damping, it takes for the base only (the links kept 0.5).
         for link in link_of.values():
+            pybullet.changeDynamics(self._robot, link, lateralFriction=1.0, **self._call)
             pybullet.changeDynamics(
-                self._robot, link, lateralFriction=1.0, linearDamping=0.0, angularDamping=0.0,
-                **self._call,
-            )  # fmt: skip
+                self._robot, link, linearDamping=0.0, angularDamping=0.0, **self._call
+            )
             pybullet.changeVisualShape(self._robot, link, rgbaColor=ROBOT_RGBA, **self._call)
         n = len(robot.hinges)
         self._angles = np.zeros(n)
@@ -127,6 +134,11 @@ class PybulletBackend(PhysicsBackend):
         self._forces = [settings.max_joint_torque] * n
         self._steps = 0
         self._pose: tuple = ((0.0, 0.0, 0.0), (0.0, 0.0, 0.0, 1.0))
+        self._velocities = np.zeros(n)
+        self._torques = np.zeros(n)
+        #: External forces by link, re-applied before every stepSimulation (PyBullet clears
+        #: them after each call).
+        self._external: dict[int, Vec3] = {}
         self.reset()
 
     def reset(self) -> None:
@@ -139,12 +151,15 @@ class PybulletBackend(PhysicsBackend):
             pybullet.resetJointState(self._robot, joint, float(rest), 0.0, **call)
         self.set_ground_friction(self.settings.friction)
         self._steps = 0
+        self._external = {}
         self._read()
 
     def _read(self) -> None:
         """Refresh the cached joint angles and root pose after a change of state."""
         states = pybullet.getJointStates(self._robot, self._joints, **self._call)
         self._angles[:] = [s[0] for s in states]
+        self._velocities[:] = [s[1] for s in states]
+        self._torques[:] = [s[3] for s in states]
         self._pose = pybullet.getBasePositionAndOrientation(self._robot, **self._call)
 
     def step(self, joint_targets: np.ndarray) -> None:
@@ -153,7 +168,13 @@ class PybulletBackend(PhysicsBackend):
             self._robot, self._joints, pybullet.VELOCITY_CONTROL,
             targetVelocities=self._command.tolist(), forces=self._forces, **self._call,
         )  # fmt: skip
-        pybullet.stepSimulation(**self._call)
+        for _ in range(self._substeps):
+            for link, force in self._external.items():
+                pybullet.applyExternalForce(
+                    self._robot, link, force, self._center_of_mass(link), pybullet.WORLD_FRAME,
+                    **self._call,
+                )  # fmt: skip
+            pybullet.stepSimulation(**self._call)
         self._steps += 1
         self._read()
         if not np.isfinite(self._pose[0][2]) or abs(self._pose[0][2]) > 1e3:
@@ -175,10 +196,9 @@ class PybulletBackend(PhysicsBackend):
         return np.asarray(pybullet.getLinkState(self._robot, link, **self._call)[0])
 
     def contact_forces(self) -> np.ndarray:
-        # PyBullet reports the last sub-step's impulse divided by the whole control period.
         return np.array(
             [
-                self._substeps * sum(c[9] for c in pybullet.getContactPoints(
+                sum(c[9] for c in pybullet.getContactPoints(
                     self._robot, self._plane, foot, -1, **self._call))
                 for foot in self._feet
             ]
@@ -186,6 +206,41 @@ class PybulletBackend(PhysicsBackend):
 
     def time(self) -> float:
         return self._steps * self.settings.control_period
+
+    def joint_velocities(self) -> np.ndarray:
+        return self._velocities.copy()
+
+    def joint_torques(self) -> np.ndarray:
+        # appliedJointMotorTorque: the motor's impulse in the last step over its length.
+        return self._torques.copy()
+
+    def body_mass(self, name: str) -> float:
+        return float(pybullet.getDynamicsInfo(self._robot, self._links[name], **self._call)[0])
+
+    def body_inertia(self, name: str) -> Vec3:
+        info = pybullet.getDynamicsInfo(self._robot, self._links[name], **self._call)
+        return (float(info[2][0]), float(info[2][1]), float(info[2][2]))
+
+    def ground_friction(self) -> float:
+        """The coefficient of a foot's ground contact: Bullet multiplies the two bodies'
+        coefficients and clamps the product to MAX_FRICTION."""
+        ground = pybullet.getDynamicsInfo(self._plane, -1, **self._call)[1]
+        foot = self._links[self.robot.contact_bodies[0]]
+        own = pybullet.getDynamicsInfo(self._robot, foot, **self._call)[1]
+        return float(min(ground * own, MAX_FRICTION))
+
+    def apply_force(self, body: str, force: Vec3) -> None:
+        link = self._links[body]
+        if any(force):
+            self._external[link] = tuple(float(f) for f in force)
+        else:
+            self._external.pop(link, None)
+
+    def _center_of_mass(self, link: int) -> Vec3:
+        """World position of a link's centre of mass (the base's frame is at its centre)."""
+        if link < 0:
+            return pybullet.getBasePositionAndOrientation(self._robot, **self._call)[0]
+        return pybullet.getLinkState(self._robot, link, **self._call)[0]
 
     def set_ground_friction(self, mu: float) -> None:
         pybullet.changeDynamics(self._plane, -1, lateralFriction=mu, **self._call)
@@ -196,10 +251,11 @@ class PybulletBackend(PhysicsBackend):
         pybullet.resetBaseVelocity(self._robot, pushed, angular, **self._call)
 
     def save_state(self) -> Any:
-        return (pybullet.saveState(**self._call), self._steps)
+        return (pybullet.saveState(**self._call), self._steps, dict(self._external))
 
     def restore_state(self, state: Any) -> None:
-        state_id, self._steps = state
+        state_id, self._steps, external = state
+        self._external = dict(external)
         pybullet.restoreState(stateId=state_id, **self._call)
         self._read()
 
