@@ -24,7 +24,7 @@ from metaopt.cli_robustness import robustness_command
 from metaopt.errors import MetaoptError
 from metaopt.export import FORMATS, export_run
 from metaopt.plugins import registry
-from metaopt.replay import replay_best
+from metaopt.replay import replay_best, replay_seeds
 from metaopt.run_loop import (
     AGGREGATES,
     MODES,
@@ -284,11 +284,19 @@ def export_command(run_id: str, fmt: str, output: str | None, db_path: str) -> N
               help="Change a problem parameter for the replay.")  # fmt: skip
 @click.option("--video", type=click.Path(dir_okay=False), default=None,
               help="Also film the best candidate into this MP4 file.")  # fmt: skip
+@click.option("--seeds", type=click.IntRange(min=1), default=None,
+              help="Re-evaluate with this many fresh seeds: median, IQR, fall rate.")  # fmt: skip
+@click.option("--seed", type=int, default=0, show_default=True,
+              help="With --seeds: draws the evaluation seeds.")  # fmt: skip
+@scheduling_options
 @db_option
 def replay_command(
-    run_id: str, backend: str | None, settings: tuple[str, ...], video: str | None, db_path: str
-) -> None:
-    """Re-run a stored run's best candidate and compare with what was stored."""
+    run_id: str, backend: str | None, settings: tuple[str, ...], video: str | None,
+    seeds: int | None, seed: int, executor: str | None, workers: int | None,
+    scheduler: str | None, db_path: str,
+) -> None:  # fmt: skip
+    """Re-run a stored run's best candidate and compare with what was stored (with --seeds: a
+    statistic over fresh seeds, for noisy problems)."""
     require_store(db_path)
     plugins = registry()
     with RunStore(db_path) as store:
@@ -296,11 +304,21 @@ def replay_command(
         problem_info = plugins.problem(run_record.problem)
         pairs = [*settings, *([f"backend={backend}"] if backend is not None else [])]
         overrides = parse_problem_settings(pairs, problem_info)
-        result = replay_best(store, run_id, plugins, overrides)
-    console.print(display.replay_table(result))
-    if result.replayed.fitness is None:
-        errors.print(f"The replay failed: {result.replayed.error}")
-        sys.exit(1)
+        if seeds is not None:
+            with build_executor(executor, workers, scheduler) as pool:
+                over_seeds = replay_seeds(store, run_id, plugins, overrides, seeds, seed, pool)
+        else:
+            result = replay_best(store, run_id, plugins, overrides)
+    if seeds is not None:
+        console.print(display.replay_seeds_table(over_seeds))
+        if all(o.fitness is None for o in over_seeds.outcomes):
+            errors.print(f"Every replay failed: {over_seeds.outcomes[0].error}")
+            sys.exit(1)
+    else:
+        console.print(display.replay_table(result))
+        if result.replayed.fitness is None:
+            errors.print(f"The replay failed: {result.replayed.error}")
+            sys.exit(1)
     if video is not None:
         write_replay_video(db_path, run_id, overrides, video)
 

@@ -19,7 +19,7 @@ from rich.progress import (
 from rich.table import Table
 
 from metaopt.params import Param
-from metaopt.replay import Replay
+from metaopt.replay import Replay, SeedReplay
 from metaopt.run_loop import RunResult
 from metaopt.store import EvaluationRecord, RunRecord
 
@@ -250,4 +250,36 @@ def robustness_table(label: str, version: str, results: Sequence, metrics: Seque
             cells.append(f"{value:.0%}" if metric.startswith("fell") else f"{value:.3f}")
         seeds = f"{len(result.samples)}" + (f" ({result.failed} failed)" if result.failed else "")
         table.add_row(result.cell, result.engine, seeds, *cells)
+    return table
+
+
+def replay_seeds_table(replay: SeedReplay) -> Table:
+    """`metaopt replay --seeds N`: the stored best beside the median and interquartile range
+    (for 'fell': the rate) of its re-evaluations over N seeds."""
+    from metaopt.robustness import summarize
+
+    done = [o for o in replay.outcomes if o.fitness is not None]
+    failed = len(replay.outcomes) - len(done)
+    changed = {
+        k: v for k, v in replay.problem_params.items() if replay.run.problem_params.get(k) != v
+    }
+    setting = ", ".join(f"{k}={v}" for k, v in changed.items()) or "as stored"
+    title = (
+        f"run {replay.run.id}, evaluation {replay.stored.index} over {len(replay.outcomes)} "
+        f"seeds ({setting})" + (f", {failed} failed" if failed else "")
+    )
+    table = Table(title=title, title_justify="left")
+    for column in ("", "stored", "median", "IQR"):
+        table.add_column(column, justify="left" if not column else "right")
+    samples = [{"fitness": o.fitness, **o.metrics} for o in done]
+    names = ["fitness", *replay.stored.metrics]
+    names += [k for o in done for k in o.metrics if k not in names]
+    stored = {"fitness": replay.stored.fitness, **replay.stored.metrics}
+    for name in dict.fromkeys(names):
+        median, low, high = summarize(samples, name)
+        if name.startswith("fell"):
+            row = [f"{median:.0%} fell", ""]
+        else:
+            row = [format_number(median), f"{format_number(low)} to {format_number(high)}"]
+        table.add_row(name, format_number(stored.get(name)), *row)
     return table

@@ -82,19 +82,25 @@ class CellResult:
     failed: int
 
     def summary(self, metric: str) -> tuple[float, float, float]:
-        """(median, lower quartile, upper quartile) of a metric over the evaluations that
-        report it (NaN when none do); for a rate ('fell...') the mean thrice."""
-        name = metric.strip("|")
-        values = [s[name] for s in self.samples if name in s]
-        if metric != name:
-            values = [abs(v) for v in values]
-        if not values:
-            return (math.nan, math.nan, math.nan)
-        if metric.startswith("fell"):
-            rate = statistics.fmean(values)
-            return (rate, rate, rate)
-        low, median, high = np.percentile(values, [25, 50, 75])
-        return (float(median), float(low), float(high))
+        """summarize() of a metric over this cell's evaluations."""
+        return summarize(self.samples, metric)
+
+
+def summarize(samples: Sequence[Mapping[str, float]], metric: str) -> tuple[float, float, float]:
+    """(median, lower quartile, upper quartile) of a metric over the samples that report it
+    (NaN when none do); for a rate (a name starting with 'fell') its mean thrice; '|name|'
+    summarizes the absolute values."""
+    name = metric.strip("|")
+    values = [s[name] for s in samples if name in s]
+    if metric != name:
+        values = [abs(v) for v in values]
+    if not values:
+        return (math.nan, math.nan, math.nan)
+    if metric.startswith("fell"):
+        rate = statistics.fmean(values)
+        return (rate, rate, rate)
+    low, median, high = np.percentile(values, [25, 50, 75])
+    return (float(median), float(low), float(high))
 
 
 def engine_param(info: ProblemInfo) -> str:
