@@ -1,4 +1,6 @@
-"""Gaits kept as data in gaits/*.json: found by an optimizer, with their provenance and metrics."""
+"""Gaits kept as data in gaits/*.json: found by an optimizer, with their provenance, metrics
+and claims. A claim is a statistic over noise seeds (median distance and |drift|, fall rate),
+not one chaotic trajectory."""
 
 from __future__ import annotations
 
@@ -8,11 +10,18 @@ from importlib.resources import files
 import numpy as np
 
 from metaopt.problem import StoredCandidate
+from metaopt.robustness import summarize
+from metaopt.seeding import EvaluationSeeds
 
 from .plugin import CONTROLLER_KINDS, NaoWalk
+from .robustness import BACKGROUND_NOISE
 
 #: The engines a record's metrics cover.
 ENGINES = ("mujoco", "pybullet")
+#: A claim's episodes: this many seeds (EvaluationSeeds(0)) at the robustness table's
+#: background noise.
+CLAIM_SEEDS = 5
+CLAIM_NOISE = BACKGROUND_NOISE
 
 
 def controller_params(controller: str) -> tuple[str, ...]:
@@ -79,3 +88,23 @@ def replay_gait(record: dict, engine: str) -> dict:
     """A stored gait's metrics on engine, re-run as it was found (its evaluation's seed; older
     records name only the run's seed)."""
     return gait_metrics(record["problem_params"], gait_vector(record), gait_seed(record), engine)
+
+
+def replay_over_seeds(record: dict, engine: str, seeds: int, noise: float) -> list[dict]:
+    """A stored gait's metrics on engine over ``seeds`` seeds (EvaluationSeeds(0)) at
+    ``noise``, from one fresh problem."""
+    draw = EvaluationSeeds(0)
+    problem = gait_problem({**record["problem_params"], "noise": noise}, engine)
+    try:
+        return [dict(problem.evaluate(gait_vector(record), draw(i)).metrics) for i in range(seeds)]
+    finally:
+        problem.close()
+
+
+def claim_statistics(samples: list[dict]) -> dict[str, float]:
+    """What a claim bounds: the median distance and |drift| and the fall rate of episodes."""
+    return {
+        "median_distance": summarize(samples, "distance")[0],
+        "median_drift": summarize(samples, "|drift|")[0],
+        "fall_rate": summarize(samples, "fell")[0],
+    }
