@@ -1,7 +1,8 @@
 """nao-walk's perturbations do what they say on every engine: a push changes the robot's
 momentum by its impulse, a mass scale is the mass and inertia the engine holds, latency delays
 what the gait senses by exactly k steps, flight is the footfalls' share; and a lock phase
-saved for one model is never restored into another."""
+saved for one model is never restored into another; worlds=standard draws a cell of the
+standard table per evaluation."""
 
 from __future__ import annotations
 
@@ -24,6 +25,7 @@ from metaopt_problems.nao_walk.episode import (
 )
 from metaopt_problems.nao_walk.footfalls import footfalls
 from metaopt_problems.nao_walk.robot import nao
+from metaopt_problems.nao_walk.robustness import STANDARD_TABLE
 from metaopt_problems.nao_walk.stored_gaits import gait_vector, load_gait
 
 BACKENDS = ("mujoco", "pybullet")
@@ -202,3 +204,29 @@ def test_a_perturbed_episode_is_deterministic(backend: str) -> None:
     finally:
         first.close()
         second.close()
+
+
+def test_worlds_standard_walks_each_evaluation_in_a_seed_drawn_cell_of_the_table() -> None:
+    world = {"duration": 7.0, "lock": 1.0, "noise": 0.1}
+    sampled = _problem("mujoco", worlds="standard", **world)
+    cells = [sampled.world_of(seed) for seed in range(400)]
+    assert cells == [sampled.world_of(seed) for seed in range(400)]
+    assert set(cells) == set(range(len(STANDARD_TABLE.cells)))
+    x = gait_vector(load_gait())
+    try:
+        for name in ("mass x1.1", "push forward"):
+            index = [c.name for c in STANDARD_TABLE.cells].index(name)
+            seed = cells.index(index)
+            given = STANDARD_TABLE.cells[index].apply(_params("mujoco", **world))
+            direct = registry().problem("nao-walk").factory(**given)
+            try:
+                expected = direct.evaluate(x, seed)
+            finally:
+                direct.close()
+            evaluation = sampled.evaluate(x, seed)
+            assert evaluation.metrics == {**expected.metrics, "world": float(index)}
+            assert evaluation.fitness == expected.fitness
+    finally:
+        sampled.close()
+    with pytest.raises(ConfigError, match="push_time"):  # the push cells need 6 s
+        _problem("mujoco", worlds="standard", **SHORT)

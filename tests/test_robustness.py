@@ -60,6 +60,10 @@ def test_every_cell_and_engine_uses_the_same_seeds_and_checked_parameters() -> N
     assert by_cell["mass x1.1"]["mass_scale"] == pytest.approx(1.1)
     assert by_cell["push sideways"]["push_direction"] == 90.0
     assert by_cell["noise 0.5"]["noise"] == 0.5 and by_cell["nominal"]["noise"] == 0.1
+    # a candidate searched over sampled worlds is tried in each cell alone
+    sampled = Candidate("c", "nao-walk", {**candidate.params, "worlds": "standard"}, candidate.x)
+    planned = tasks(sampled, info, STANDARD_TABLE, ("mujoco",), 1, seed=4)
+    assert {task.params["worlds"] for _, _, task in planned} == {"none"}
     with pytest.raises(ConfigError, match="friction"):  # MuJoCo's limit is 3
         tasks(Candidate("c", "nao-walk", {**candidate.params, "friction": 2.5},
                         candidate.x), info, STANDARD_TABLE, ("mujoco",), 1, 0)  # fmt: skip

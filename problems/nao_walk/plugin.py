@@ -66,6 +66,8 @@ CONTROLLER_KINDS = {
     "stride": ControllerKind(stride_space, StrideCpg),
 }
 CONTROLLERS = tuple(CONTROLLER_KINDS)
+#: worlds: none, or one cell of the standard perturbation table drawn per evaluation.
+WORLDS = ("none", "standard")
 
 PARAMS = (
     Param("backend", str, "mujoco", "physics engine (an installed physics backend plugin), or "
@@ -103,6 +105,9 @@ PARAMS = (
           "many 20 ms control steps earlier", low=0, high=50),
     Param("measure_flight", bool, False, "also measure the metric flight: the share of the "
           "walking phase after 2 s with neither foot on the ground (a contact query per step)"),
+    Param("worlds", str, "none", "none, or standard: each evaluation's seed draws one cell of "
+          "the standard perturbation table (docs/robustness.md) to walk in",
+          choices=WORLDS),
 )  # fmt: skip
 
 
@@ -133,7 +138,10 @@ class NaoWalk(Problem):
         push_time: float = 6.0,
         latency: int = 0,
         measure_flight: bool = False,
+        worlds: str = "none",
     ) -> None:
+        #: every parameter, to build the perturbed worlds from (worlds=standard)
+        self._params = {k: v for k, v in locals().items() if k not in ("self", "__class__")}
         if lock >= duration:
             raise ConfigError(
                 f"nao-walk: lock ({lock} s) must be shorter than duration ({duration} s)"
@@ -170,6 +178,14 @@ class NaoWalk(Problem):
         self.robot = nao().with_mass_scale(mass_scale) if mass_scale != 1 else nao()
         self._limits = {hinge.name: (hinge.lower, hinge.upper) for hinge in self.robot.hinges}
         self._runners: dict[str, EpisodeRunner] = {}
+        if worlds not in WORLDS:
+            raise ConfigError(f"nao-walk: unknown worlds {worlds!r}; accepted: {', '.join(WORLDS)}")
+        self.worlds = worlds
+        self._worlds: dict[int, NaoWalk] = {}
+        if worlds == "standard":
+            for cell in range(len(STANDARD_TABLE.cells)):
+                self._world(cell).close()  # a world refusing its parameters says so now
+                del self._worlds[cell]
 
     @property
     def runner(self) -> EpisodeRunner:
@@ -195,7 +211,24 @@ class NaoWalk(Problem):
             return None
         return Disturbance.draw(self.noise, seed, self.physics.friction, self.runner.walk_steps)
 
+    def world_of(self, seed: int) -> int:
+        """The standard table's cell an evaluation with seed walks in (worlds=standard): drawn
+        from its own stream of the seed, apart from the noise's."""
+        return int(np.random.default_rng((seed, 1)).integers(len(STANDARD_TABLE.cells)))
+
+    def _world(self, cell: int) -> NaoWalk:
+        """The problem of one cell of the standard table, built on first use."""
+        world = self._worlds.get(cell)
+        if world is None:
+            params = STANDARD_TABLE.cells[cell].apply({**self._params, "worlds": "none"})
+            world = self._worlds[cell] = NaoWalk(**params)
+        return world
+
     def evaluate(self, x: np.ndarray, seed: int) -> Evaluation:
+        if self.worlds == "standard":
+            cell = self.world_of(seed)
+            evaluation = self._world(cell).evaluate(x, seed)
+            return Evaluation(evaluation.fitness, {**evaluation.metrics, "world": float(cell)})
         gait = self.gait(x)
         if len(self.engines) == 1:
             return self._evaluate_on(self.engines[0], gait, seed)
@@ -234,10 +267,13 @@ class NaoWalk(Problem):
         while self._runners:
             _, runner = self._runners.popitem()
             runner.backend.close()
+        while self._worlds:
+            _, world = self._worlds.popitem()
+            world.close()
 
     def __getstate__(self) -> dict[str, Any]:
         # Engines do not pickle; each process builds its own on first use.
-        return {**self.__dict__, "_runners": {}}
+        return {**self.__dict__, "_runners": {}, "_worlds": {}}
 
 
 def _stored_gaits() -> dict[str, StoredCandidate]:
