@@ -18,6 +18,13 @@ or get one pytest test per check::
     def test_conforms(check):
         CHECKS[check]()
 
+A physics engine (a ``metaopt_physics_backends`` plugin) gets the engine agreement suite: what
+it simulates, measured from it (friction, motors, mass, standing, free fall; see
+metaopt.engine_agreement)::
+
+    def test_my_engine_agrees():
+        check_engine("my-engine")
+
 A breach raises ConformanceError (an AssertionError) saying what was breached and how to fix it.
 The kit holds a plugin to what the run loop and the run store rely on, and to a little more
 that a sound plugin always satisfies: a problem must evaluate every point sampled uniformly in
@@ -41,9 +48,11 @@ from typing import Any
 
 import numpy as np
 
+from metaopt.engine_agreement import MEASUREMENTS, measure
 from metaopt.errors import ConfigError
 from metaopt.optimizer import Optimizer, OptimizerInfo
 from metaopt.params import Param, resolve
+from metaopt.physics import BackendInfo
 from metaopt.plugins import registry
 from metaopt.problem import Evaluation, Problem, ProblemInfo, Sense
 from metaopt.seeding import EvaluationSeeds
@@ -137,6 +146,31 @@ def problem_checks(
     if in_subprocess:
         checks["pure_in_subprocess"] = harness.check_pure_in_subprocess
     return checks
+
+
+def check_engine(backend: str | BackendInfo) -> None:
+    """Run every engine agreement check; raise ConformanceError listing each breach."""
+    _run_all(_backend_name(backend), engine_checks(backend))
+
+
+def engine_checks(backend: str | BackendInfo) -> dict[str, Check]:
+    """The engine agreement checks by name (metaopt.engine_agreement.MEASUREMENTS), each
+    measuring a fresh simulation of the NAO on the engine and raising ConformanceError when a
+    figure is off its prediction by more than its tolerance."""
+    return {name: partial(_check_agreement, backend, name) for name in MEASUREMENTS}
+
+
+def _check_agreement(backend: str | BackendInfo, name: str) -> None:
+    breaches = [figure.describe() for figure in measure(backend, name) if not figure.agrees]
+    if breaches:
+        raise ConformanceError(
+            f"the engine {_backend_name(backend)!r} simulates something else: "
+            + "; ".join(breaches)
+        )
+
+
+def _backend_name(backend: str | BackendInfo) -> str:
+    return backend if isinstance(backend, str) else backend.name
 
 
 # ----------------------------------------------------------------------------------------------

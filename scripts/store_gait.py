@@ -11,9 +11,11 @@ distance a little below the measured one, a median |drift| bound and the fall ra
         --command "metaopt compare docs/faster-walk/mujoco.toml --workers 2" \\
         --description "..." --claim mujoco
 
-``--remeasure NAME`` measures a stored gait again on the installed engines (after a change of
-an engine or of the claims' statistics): its metrics, engine versions and claims; how it was
-found and its parameters stay.
+After a change of an engine (or of the claims' statistics), ``--remeasure NAME --why "..."``
+re-runs a record's episode on every engine and re-records what it does now: its metrics, the
+engines' versions, and its claims on every engine it claimed, measured again (a gait that now
+falls there gets a claim saying how often). Metrics it replaces are kept under
+``earlier_metrics`` with the reason; how it was found and its parameters stay.
 """
 
 from __future__ import annotations
@@ -102,22 +104,21 @@ def record(db: Path, run_id: int, command: str, description: str, claims: list[s
     return gait
 
 
-def remeasure(name: str) -> dict:
-    """Stored gait NAME's record measured again on the installed engines (after a change of an
-    engine or of the claims' statistics): its episode's metrics, the engines' versions, and its
-    claims on the engines it claims; an engine it no longer walks on (falls in most episodes,
-    or a median distance under MIN_CLAIM_DISTANCE) loses its claim, said on stderr."""
-    gait = load_gait(name)
+def remeasured(gait: dict, why: str) -> dict:
+    """The record gait with what it does on every engine now (see the module's docstring)."""
     x, seed = gait_vector(gait), gait_seed(gait)
-    gait["metrics"] = {e: gait_metrics(gait["problem_params"], x, seed, e) for e in ENGINES}
-    gait["engine_versions"] = {engine: importlib.metadata.version(engine) for engine in ENGINES}
-    claims = {engine: claim(gait, engine) for engine in gait["claims"]}
-    for engine, claimed in claims.items():
-        if not walks(claimed):
-            print(f"{name} no longer walks on {engine} ({claimed}): claim dropped",
-                  file=sys.stderr)  # fmt: skip
-    gait["claims"] = {e: c for e, c in claims.items() if walks(c)}
-    return gait
+    metrics = {e: gait_metrics(gait["problem_params"], x, seed, e) for e in ENGINES}
+    versions = {engine: importlib.metadata.version(engine) for engine in ENGINES}
+    earlier = list(gait.get("earlier_metrics", []))
+    if metrics != gait["metrics"] or versions != gait["engine_versions"]:
+        earlier.append(
+            {"why": why, "metrics": gait["metrics"], "engine_versions": gait["engine_versions"]}
+        )
+    updated = {**gait, "metrics": metrics, "engine_versions": versions}
+    updated["claims"] = {engine: claim(updated, engine) for engine in gait["claims"]}
+    if earlier:
+        updated["earlier_metrics"] = earlier
+    return updated
 
 
 def walks(claimed: dict) -> bool:
@@ -136,10 +137,13 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument(
         "--claim", action="append", default=[], choices=ENGINES, help="an engine it walks on"
     )
-    parser.add_argument("--remeasure", metavar="NAME", help="measure a stored gait again")
+    parser.add_argument("--remeasure", metavar="NAME", help="re-record gaits/NAME.json")
+    parser.add_argument("--why", help="with --remeasure: what changed in the engines")
     args = parser.parse_args(argv)
     if args.remeasure:
-        name, gait = args.remeasure, remeasure(args.remeasure)
+        if not args.why or not (GAITS / f"{args.remeasure}.json").is_file():
+            parser.error("--remeasure needs an existing record's name and --why")
+        name, gait = args.remeasure, remeasured(load_gait(args.remeasure), args.why)
     else:
         needed = {"run": args.run, "--db": args.db, "--name": args.name,
                   "--command": args.command, "--description": args.description}  # fmt: skip

@@ -124,8 +124,8 @@ def test_same_seed_same_metrics_in_another_process(backend: str) -> None:
     assert json.loads(out.stdout.strip().splitlines()[-1]) == here
 
 
-#: Measured at noise 1 over SEEDS (full 15 s episodes): MuJoCo 0.720 to 0.797 m, PyBullet
-#: 0.676 to 0.704 m, no fall (noise-free: 0.840 and 0.709 m).
+#: Measured at noise 1 over SEEDS (full 15 s episodes), on the engines corrected by issue 14:
+#: MuJoCo 0.167 to 0.199 m, PyBullet 0.313 to 0.416 m, no fall (noise-free: 0.181 and 0.390 m).
 @pytest.mark.parametrize("backend", BACKENDS)
 def test_stored_gait_still_walks_at_noise_one(backend: str) -> None:
     problem = _problem(backend, noise=1.0)
@@ -136,5 +136,5 @@ def test_stored_gait_still_walks_at_noise_one(backend: str) -> None:
         problem.close()
     assert all(m["fell"] == 0 for m in metrics)
     distances = [m["distance"] for m in metrics]
-    assert min(distances) >= 0.6
-    assert 0 < max(distances) - min(distances) < 0.2
+    assert min(distances) >= 0.15
+    assert 0 < max(distances) - min(distances) < 0.15

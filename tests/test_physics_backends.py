@@ -150,18 +150,18 @@ def test_mass_and_inertia_read_back_equal_the_description(backend: PhysicsBacken
 
 
 def test_joint_velocities_read_back(backend: PhysicsBackend) -> None:
-    """A swinging hip's measured velocity matches its angle's change over a control period
-    (the servo keeps the speed near constant within one)."""
+    """A swinging arm's measured velocity matches its angle's change over a control period
+    (its motor, far below its limit, keeps the commanded speed within one)."""
     robot = backend.robot
-    hip = robot.joint_index("llj3")
+    arm = robot.joint_index("laj1")
     targets = robot.rest_angles
-    targets[hip] = 0.6
+    targets[arm] += 0.6
     for _ in range(3):
-        before = backend.joint_angles()[hip]
+        before = backend.joint_angles()[arm]
         backend.step(targets)
-    swing = (backend.joint_angles()[hip] - before) / backend.settings.control_period
-    assert backend.joint_velocities()[hip] == pytest.approx(swing, rel=0.1)
-    assert backend.joint_velocities()[hip] > 1.0
+    swing = (backend.joint_angles()[arm] - before) / backend.settings.control_period
+    assert backend.joint_velocities()[arm] == pytest.approx(swing, rel=0.05)
+    assert backend.joint_velocities()[arm] > 1.0
 
 
 def test_joint_torques_read_back_a_known_load(backend: PhysicsBackend) -> None:

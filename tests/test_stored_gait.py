@@ -5,7 +5,8 @@ that found it is in the record). A claim is a statistic, not one trajectory: on 
 record *claims* (for hs_walk: MuJoCo; for the extended and stride controllers' gaits:
 docs/faster-walk.md), over the claim's seeds at its noise, the median distance must be at least
 the claimed one (a little below what was measured), the median |drift| at most the claimed one,
-and the fall rate at most the claimed one. On every engine, claimed or not, every recorded metric
+and the fall rate at most the claimed one (since the engines were corrected, issue 14, some
+claims record that a gait falls there). On every engine, claimed or not, every recorded metric
 of the episode it was found with must equal the stored record: the episode is deterministic, so
 any change is a change of the simulation or the controller; on an engine it does not claim the
 record documents the cross-engine transfer.
@@ -84,8 +85,8 @@ def test_stored_gait_is_complete(name: str) -> None:
     for claim in gait["claims"].values():
         assert set(claim) == {"noise", "seeds", "min_median_distance", "max_median_drift",
                               "max_fall_rate"}  # fmt: skip
-        assert claim["seeds"] >= 5 and claim["noise"] > 0 and claim["min_median_distance"] > 0.5
-        assert 0 <= claim["max_fall_rate"] < 0.5
+        assert claim["seeds"] >= 5 and claim["noise"] > 0
+        assert claim["min_median_distance"] >= 0 and 0 <= claim["max_fall_rate"] <= 1
 
 
 @pytest.mark.parametrize("engine", ENGINES)

@@ -9,9 +9,10 @@ from __future__ import annotations
 from metaopt import hookimpl
 from metaopt.physics import BackendInfo, PhysicsBackend, PhysicsSettings, RobotDescription
 
-#: Physics steps per 20 ms control period by default (0.005 s steps): the fewest at which the
-#: NAO stands without jitter (docs/nao-walk.md).
-DEFAULT_SUBSTEPS = 4
+#: Physics steps per 20 ms control period by default (0.00125 s steps): the fewest at which
+#: the joint motors (mujoco_engine.KV) neither chatter at their torque limit nor give way
+#: much more than a constraint motor (docs/nao-walk.md, "Motors"); 4 steps stand the robot.
+DEFAULT_SUBSTEPS = 16
 #: MuJoCo's default pyramidal friction cone softens a contact's normal direction as the
 #: friction coefficient grows: from mu = 4 the standing NAO sinks and falls (docs/nao-walk.md).
 MAX_FRICTION = 3.0

@@ -1,9 +1,11 @@
 """MuJoCo physics backend: builds an MJCF model from a RobotDescription and drives it.
 
 Each hinge gets a velocity actuator (force = KV * (command - joint speed), limited to
-±max_joint_torque), the analogue of the ODE hinge motor of rcssserver3d; the implicit-fast
-integrator keeps that stiff damping stable. The state (time, qpos, qvel, act, ctrl, warm start)
-is saved and restored with mj_getState/mj_setState, which reproduces a run bit for bit.
+±max_joint_torque), the nearest MuJoCo has to the ODE hinge motor of rcssserver3d (a constraint
+reaching its target speed within the step with at most 10 N·m); how near is measured in
+docs/nao-walk.md ("Motors") by benchmarks/motor_model.py. The state (time, qpos, qvel, act,
+ctrl, warm start, applied forces) is saved and restored with mj_getState/mj_setState, which
+reproduces a run bit for bit.
 render() draws offscreen with mujoco.Renderer (headless OpenGL: EGL, else OSMesa).
 """
 
@@ -42,12 +44,18 @@ from metaopt.physics import (
 )
 from metaopt_problems.physics.mujoco_backend import DEFAULT_SUBSTEPS
 
-#: Velocity-servo gain, N·m per rad/s: stiff enough that the torque limit, not the gain,
-#: decides how fast a joint follows its command (as ODE's motor constraint does).
-KV = 20.0
-#: Rotor inertia added to every hinge, kg·m². Without it the servo and the tiny mass-carrier
-#: spheres (I ~ 5e-6) set up a ±1° rocking limit cycle; stability needs about
-#: KV * timestep / ARMATURE <= 5 (so 0.02 at 4 substeps; see docs/nao-walk.md).
+#: Velocity-servo gain, N·m per rad/s. MuJoCo integrates the actuator implicitly only while
+#: its force is inside the force range; a clamped force acts explicitly for the whole step, so
+#: a joint overshoots its target by up to 10 N·m * timestep / inertia and chatters at the limit
+#: unless KV * timestep / ARMATURE stays near 2.5 or below. The old KV 20 at 0.005 s steps (5)
+#: chattered: the head commanded 3 rad/s alternated 2.4 and 4.9 rad/s, and some joint sat at
+#: the limit on 89-94 % of a fast gait's control steps. KV 40 at 0.00125 s steps (2.5) reaches
+#: a commanded speed within a control period without chatter and holds a joint twice as stiffly
+#: as before; fewer substeps bring the chatter back (docs/nao-walk.md, "Motors").
+KV = 40.0
+#: Rotor inertia added to every hinge, kg·m² (the server has none). Without it the servo and
+#: the tiny mass-carrier spheres (I ~ 5e-6) are unstable (KV >= 200 at 4 substeps) or rock the
+#: standing robot by 1-2.5° (KV 5-2000, 4-40 substeps); measured in docs/nao-walk.md.
 ARMATURE = 0.02
 _STATE = mujoco.mjtState.mjSTATE_INTEGRATION
 
