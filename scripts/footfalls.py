@@ -29,6 +29,9 @@ def main(names: list[str]) -> None:
             problem = gait_problem(record["problem_params"], engine)
             try:
                 feet = footfalls(problem.runner, problem.gait(gait_vector(record)))
+            except ValueError as error:  # it fell before there was anything to measure
+                print(f"| {name} | {engine} | {error} | | | | | |")
+                continue
             finally:
                 problem.close()
             left, right = feet.contact

@@ -1055,6 +1055,14 @@ walk **5.3 m in 12 s (0.44 m/s)** and the GA **4.2 m (0.35 m/s)**. This page run
 again with metaopt: both optimizers, the paper's budgets, 5 seeds each, on MuJoCo and on
 PyBullet, plus the Harmony Search variants, and puts the measured numbers beside the paper's.
 
+> **Measured with the old engines.** Every run on this page was made before issue 14 corrected
+> the engines: PyBullet then simulated friction 0.5 on the robot's links (not 1) and joint
+> motors that held 40 N·m (not 10); MuJoCo a velocity actuator of kv 20 at 4 sub-steps that
+> chattered at its torque limit ([nao-walk: physics backends](nao-walk.md#physics-backends)).
+> The study was not re-run; every figure below is of the **old engines**. Replayed on the
+> corrected engines, the stored HS gait of the paper's controller walks 0.18 m on MuJoCo
+> (0.84 m before) and 0.39 m on PyBullet (0.71 m before).
+
 **In short.** Nothing here comes near the paper. Over all {runs_finished} runs the median best
 distance in 12 s is {all_median_distance} m and the longest is {all_max_distance} m
 ({best_run}), {paper_ratio} times shorter than the paper's 5.3 m. {significance}

@@ -1,0 +1,51 @@
+"""The stored HS gait's distance under noise (docs/nao-walk.md, "Noise"): for each noise level
+and engine, the distance in the 12 s walking phase over SEEDS noise seeds (mean ± std,
+min – max) and the falls. Usage:
+
+    python benchmarks/noise_spread.py [--gait hs_walk] [--seeds 20] [--noise 0,0.5,1,2,3]
+"""
+
+from __future__ import annotations
+
+import argparse
+
+import numpy as np
+
+from metaopt.plugins import registry
+from metaopt.seeding import EvaluationSeeds
+from metaopt_problems.nao_walk.stored_gaits import gait_problem, gait_vector, load_gait
+
+
+def spread(gait: str, engine: str, noise: float, seeds: int) -> str:
+    """One table cell: the distances over seeds at noise on engine."""
+    record = load_gait(gait)
+    problem = gait_problem({**record["problem_params"], "noise": noise}, engine)
+    try:
+        runs = [problem.evaluate(gait_vector(record), EvaluationSeeds(7)(i)).metrics
+                for i in range(seeds)]  # fmt: skip
+    finally:
+        problem.close()
+    distances = np.array([m["distance"] for m in runs])
+    falls = sum(int(m["fell"]) for m in runs)
+    cell = f"{distances.mean():.3f} ± {distances.std():.3f} ({distances.min():.3f} – "
+    cell += f"{distances.max():.3f})"
+    return cell + (f", {falls} of {seeds} fell" if falls else "")
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--gait", default="hs_walk")
+    parser.add_argument("--seeds", type=int, default=20)
+    parser.add_argument("--noise", default="0,0.5,1,2,3")
+    args = parser.parse_args()
+    engines = list(registry().physics_backends)
+    columns = " | ".join(f"{engine} distance, mean ± std (min – max)" for engine in engines)
+    print(f"| noise | {columns} |")
+    print("|---|" + "---|" * len(engines))
+    for noise in (float(n) for n in args.noise.split(",")):
+        cells = [spread(args.gait, engine, noise, args.seeds) for engine in engines]
+        print(f"| {noise:g} | " + " | ".join(cells) + " |")
+
+
+if __name__ == "__main__":
+    main()
