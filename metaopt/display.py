@@ -22,7 +22,7 @@ from rich.progress import (
 from rich.table import Table
 
 from metaopt.params import Param
-from metaopt.replay import Replay
+from metaopt.replay import Replay, SeedReplay
 from metaopt.run_loop import RunResult
 from metaopt.store import CandidateRecord, RunRecord
 
@@ -308,3 +308,58 @@ def reflow(text: str) -> str:
                 lines.append(stripped)
         paragraphs.append("\n".join(lines))
     return "\n\n".join(paragraphs)
+
+
+def robustness_table(label: str, version: str, results: Sequence, metrics: Sequence[str]) -> Table:
+    """`metaopt robustness`: per perturbation and engine, each metric's median over the seeds
+    (a rate: its value), with the first metric's interquartile range."""
+    table = Table(title=f"{label}: perturbation table {version}", title_justify="left")
+    table.add_column("perturbation")
+    table.add_column("engine")
+    table.add_column("seeds", justify="right")
+    table.add_column(f"{metrics[0]} (median)", justify="right")
+    table.add_column("IQR", justify="right")
+    for metric in metrics[1:]:
+        table.add_column(metric if metric.startswith("fell") else f"{metric} (median)",
+                         justify="right")  # fmt: skip
+    for result in results:
+        median, low, high = result.summary(metrics[0])
+        cells = [f"{median:.3f}", f"{low:.3f}-{high:.3f}"]
+        for metric in metrics[1:]:
+            value = result.summary(metric)[0]
+            cells.append(f"{value:.0%}" if metric.startswith("fell") else f"{value:.3f}")
+        seeds = f"{len(result.samples)}" + (f" ({result.failed} failed)" if result.failed else "")
+        table.add_row(result.cell, result.engine, seeds, *cells)
+    return table
+
+
+def replay_seeds_table(replay: SeedReplay) -> Table:
+    """`metaopt replay --seeds N`: the stored best beside the median and interquartile range
+    (for 'fell': the rate) of its re-evaluations over N seeds."""
+    from metaopt.robustness import summarize
+
+    done = [o for o in replay.outcomes if o.fitness is not None]
+    failed = len(replay.outcomes) - len(done)
+    changed = {
+        k: v for k, v in replay.problem_params.items() if replay.run.problem_params.get(k) != v
+    }
+    setting = ", ".join(f"{k}={v}" for k, v in changed.items()) or "as stored"
+    title = (
+        f"run {replay.run.id}, {replay.stored.describe()} over {len(replay.outcomes)} "
+        f"seeds ({setting})" + (f", {failed} failed" if failed else "")
+    )
+    table = Table(title=title, title_justify="left")
+    for column in ("", "stored", "median", "IQR"):
+        table.add_column(column, justify="left" if not column else "right")
+    samples = [{"fitness": o.fitness, **o.metrics} for o in done]
+    names = ["fitness", *replay.stored.metrics]
+    names += [k for o in done for k in o.metrics if k not in names]
+    stored = {"fitness": replay.stored.fitness, **replay.stored.metrics}
+    for name in dict.fromkeys(names):
+        median, low, high = summarize(samples, name)
+        if name.startswith("fell"):
+            row = [f"{median:.0%} fell", ""]
+        else:
+            row = [format_number(median), f"{format_number(low)} to {format_number(high)}"]
+        table.add_row(name, format_number(stored.get(name)), *row)
+    return table

@@ -10,7 +10,7 @@ from __future__ import annotations
 import math
 from abc import ABC, abstractmethod
 from collections.abc import Callable
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import Any
 
 import numpy as np
@@ -158,6 +158,15 @@ class RobotDescription:
     def rest_angles(self) -> np.ndarray:
         """Every joint's rest angle, radians, in joint order."""
         return np.array([h.rest for h in self.hinges], dtype=float)
+
+    def with_mass_scale(self, scale: float) -> RobotDescription:
+        """A copy with every body's mass (and so its inertia, which follows from mass and
+        shape) multiplied by scale: a heavier or lighter robot of the same geometry, built
+        alike by every engine."""
+        if not scale > 0:
+            raise ValueError(f"mass scale must be positive, got {scale}")
+        bodies = tuple(replace(b, mass=b.mass * scale) for b in self.bodies)
+        return replace(self, bodies=bodies)
 
     def body(self, name: str) -> Body:
         """The body called name."""

@@ -4,9 +4,9 @@ from __future__ import annotations
 
 import enum
 from abc import ABC, abstractmethod
-from collections.abc import Callable
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
@@ -15,6 +15,8 @@ from metaopt.space import Space
 
 if TYPE_CHECKING:
     from matplotlib.figure import Figure
+
+    from metaopt.robustness import PerturbationTable
 
 
 class Sense(str, enum.Enum):
@@ -80,11 +82,23 @@ class Problem(ABC):
 
 
 @dataclass(frozen=True)
+class StoredCandidate:
+    """A candidate a problem plugin keeps as data (e.g. nao-walk's stored gaits): the problem
+    parameters it was found with, its decision vector, and the seed it was evaluated with."""
+
+    params: dict[str, Any]
+    x: np.ndarray
+    seed: int
+
+
+@dataclass(frozen=True)
 class ProblemInfo:
     """How a plugin announces a problem: its name, what it is, its parameters, a factory.
 
     ``factory(**params)`` receives every declared parameter (defaults filled in, validated).
     ``default_budget`` is the number of evaluations a run gets when the user names none.
+    Optional: ``perturbations``, the standard table ``metaopt robustness`` evaluates a
+    candidate over; ``stored_candidates()``, the candidates it keeps as data, by name.
     """
 
     name: str
@@ -93,3 +107,5 @@ class ProblemInfo:
     params: tuple[Param, ...] = ()
     description: str = ""
     default_budget: int = 1000
+    perturbations: PerturbationTable | None = None
+    stored_candidates: Callable[[], Mapping[str, StoredCandidate]] | None = None

@@ -8,11 +8,19 @@ from typing import Any
 import numpy as np
 
 from metaopt.errors import ConfigError, StoreError
-from metaopt.executors import EvaluationTask, Outcome, adopt_problem, evaluate_task
+from metaopt.executors import (
+    EvaluationTask,
+    Executor,
+    Outcome,
+    adopt_problem,
+    evaluate_task,
+    release_problems,
+)
 from metaopt.params import resolve
 from metaopt.plugins import Registry
 from metaopt.problem import ProblemInfo
 from metaopt.resampling import aggregate_samples
+from metaopt.seeding import EvaluationSeeds
 from metaopt.store import CandidateRecord, RunRecord, RunStore
 
 
@@ -85,3 +93,42 @@ def _combined(outcomes: list[Outcome], aggregate: str) -> Outcome:
     )
     wall = sum(o.wall_time for o in outcomes)
     return Outcome(outcomes[0].index, fitness, metrics, wall_time=wall)
+
+
+@dataclass
+class SeedReplay:
+    """The stored best evaluation beside its re-evaluations with fresh seeds."""
+
+    run: RunRecord
+    stored: CandidateRecord
+    problem_params: dict[str, Any]
+    outcomes: list[Outcome]
+
+
+def replay_seeds(
+    store: RunStore,
+    run_id: int | str,
+    plugins: Registry,
+    overrides: dict[str, Any],
+    seeds: int,
+    seed: int,
+    executor: Executor,
+) -> SeedReplay:
+    """Evaluate run ``run_id``'s best candidate with ``seeds`` evaluation seeds drawn from
+    ``seed`` (not the one it was found with): on a noisy problem, what the candidate does
+    rather than what one episode did. ``overrides`` as for replay_best."""
+    if seeds < 1:
+        raise ConfigError(f"seeds must be at least 1, got {seeds}")
+    run, best = stored_best(store, run_id)
+    info, params = replay_params(run, plugins, overrides)
+    info.factory(**params).close()  # a problem refusing its parameters says so before work
+    draw = EvaluationSeeds(seed)
+    x = np.asarray(best.x)
+    futures = [
+        executor.submit(EvaluationTask(i, x, draw(i), info.factory, params)) for i in range(seeds)
+    ]
+    try:
+        outcomes = [future.result() for future in futures]
+    finally:
+        release_problems()
+    return SeedReplay(run, best, params, outcomes)

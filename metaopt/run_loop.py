@@ -37,7 +37,7 @@ from metaopt.optimizer import Optimizer, OptimizerInfo
 from metaopt.params import resolve
 from metaopt.problem import Problem, ProblemInfo, Sense
 from metaopt.resampling import AGGREGATES, aggregate_samples
-from metaopt.seeding import EvaluationSeeds
+from metaopt.seeding import CommonSeeds, EvaluationSeeds
 from metaopt.store import EvaluationRecord, RunRecord, RunStore
 from metaopt.versions import environment_versions
 
@@ -70,6 +70,9 @@ class RunSettings:
     aggregate: str = "mean"
     #: seconds an evaluation may take before it is stopped and stored as failed (None = no limit)
     time_limit: float | None = None
+    #: every candidate's resample evaluations use the same resample seeds (common random
+    #: numbers, docs/scaling.md), instead of seeds of their own
+    common_seeds: bool = False
 
     def check(self, budget: int) -> None:
         """ConfigError naming the bad setting."""
@@ -261,8 +264,12 @@ class _Session:
         self.problem_params = problem_params
         self.problem_key = problem_key(problem_info.factory, problem_params)
         self.sign = -1.0 if Sense(problem.sense) is Sense.MAXIMIZE else 1.0
-        self.seeds = EvaluationSeeds(spec.seed)
         self.resample = self.settings.resample
+        self.seeds = (
+            CommonSeeds(spec.seed, self.resample)
+            if self.settings.common_seeds
+            else EvaluationSeeds(spec.seed)
+        )
         self.total = (spec.budget // self.resample) * self.resample
         self.told_below = 0  # every candidate whose evaluations all lie below this is told
         self.told_extra: set[int] = set()  # candidates told beyond told_below (async)

@@ -26,3 +26,17 @@ class EvaluationSeeds:
     def __call__(self, index: int) -> int:
         """The seed of evaluation ``index``."""
         return _splitmix64(self._run_key ^ index) >> 1
+
+
+class CommonSeeds:
+    """Common random numbers: evaluation ``index`` of a run resampling every candidate
+    ``count`` times gets sample ``index % count``'s seed, so every candidate is evaluated on
+    the same ``count`` seeds and the differences between candidates are not seed noise."""
+
+    def __init__(self, run_seed: int, count: int) -> None:
+        self._seeds = EvaluationSeeds(run_seed)
+        self._count = count
+
+    def __call__(self, index: int) -> int:
+        """The seed of evaluation ``index``: that of sample ``index % count``."""
+        return self._seeds(index % self._count)

@@ -1,14 +1,15 @@
 """The gaits kept as data (problems/nao_walk/gaits/*.json) still do what their records say.
 
 Each record was made by scripts/store_gait.py from the best evaluation of a run (the command
-that found it is in the record). On every engine its record *claims* (for hs_walk: MuJoCo; for
-the extended and stride controllers' gaits: docs/faster-walk.md) it must walk the 12 s walking
-phase without falling, at least the claimed distance (a little below what it reached) and with at
-most the claimed drift; a claim re-recorded after the engines were corrected (issue 14) may
-instead say that the gait now falls there. On every engine, claimed or not, every metric must
-equal the stored record: the episode is deterministic, so any change is a change of the
-simulation or the controller; on an engine it does not claim the record documents the
-cross-engine transfer.
+that found it is in the record). A claim is a statistic, not one trajectory: on every engine its
+record *claims* (for hs_walk: MuJoCo; for the extended and stride controllers' gaits:
+docs/faster-walk.md), over the claim's seeds at its noise, the median distance must be at least
+the claimed one (a little below what was measured), the median |drift| at most the claimed one,
+and the fall rate at most the claimed one (since the engines were corrected, issue 14, some
+claims record that a gait falls there). On every engine, claimed or not, every recorded metric
+of the episode it was found with must equal the stored record: the episode is deterministic, so
+any change is a change of the simulation or the controller; on an engine it does not claim the
+record documents the cross-engine transfer.
 """
 
 from __future__ import annotations
@@ -23,13 +24,17 @@ from metaopt.plugins import registry
 from metaopt_problems.nao_walk.plugin import CONTROLLERS
 from metaopt_problems.nao_walk.stored_gaits import (
     ENGINES,
+    claim_statistics,
     controller_params,
     load_gait,
     replay_gait,
+    replay_over_seeds,
     stored_gait_names,
 )
 
 GAITS = stored_gait_names()
+#: scripts/store_gait.py's margin below the measured median distance
+DISTANCE_MARGIN = 0.9
 
 
 def _assert_equal_record(
@@ -40,7 +45,6 @@ def _assert_equal_record(
     installed = importlib.metadata.version(engine)
     if installed != recorded_version:
         pytest.skip(f"record made with {engine} {recorded_version}, installed {installed}")
-    assert set(measured) == set(record)
     for name, value in record.items():
         assert math.isclose(measured[name], value, rel_tol=1e-9, abs_tol=1e-9), (
             name, measured[name], value,
@@ -51,11 +55,16 @@ def test_every_controller_has_a_kept_gait_and_a_gait_walks_fast_on_both_engines(
     assert "hs_walk" in GAITS
     controllers = {load_gait(name)["problem_params"]["controller"] for name in GAITS}
     assert controllers == set(CONTROLLERS)
-    # docs/faster-walk.md's goal on both engines was 0.3 m/s over the 12 s walking phase; on the
-    # corrected engines (issue 14) the best both-engine gait claims 0.28 m/s there
+    # docs/faster-walk.md's goal on both engines: 0.3 m/s over the 12 s walking phase, as a
+    # median over seeds and without falls (a claim sits DISTANCE_MARGIN below the median
+    # measured when it was made)
     assert any(
         set(gait["claims"]) == set(ENGINES)
-        and all(claim.get("min_distance", 0) >= 0.28 * 12 for claim in gait["claims"].values())
+        and all(
+            claim["min_median_distance"] >= DISTANCE_MARGIN * 0.3 * 12
+            and claim["max_fall_rate"] == 0
+            for claim in gait["claims"].values()
+        )
         for gait in map(load_gait, GAITS)
     )
 
@@ -64,32 +73,31 @@ def test_every_controller_has_a_kept_gait_and_a_gait_walks_fast_on_both_engines(
 def test_stored_gait_is_complete(name: str) -> None:
     gait = load_gait(name)
     params = gait["problem_params"]
-    assert params == resolve(registry().problem("nao-walk").params, params, "nao-walk")
+    # every stored parameter is valid; ones added to nao-walk since take their defaults
+    resolved = resolve(registry().problem("nao-walk").params, params, "nao-walk")
+    assert {name: resolved[name] for name in params} == params
     assert list(gait["parameters"]) == list(controller_params(params["controller"]))
     found_by = gait["found_by"]
     assert found_by["command"].startswith("metaopt ")
     assert registry().optimizer(found_by["optimizer"])
     assert set(gait["metrics"]) == set(ENGINES) == set(gait["engine_versions"])
     assert gait["claims"] and set(gait["claims"]) <= set(ENGINES)
-    for engine, claim in gait["claims"].items():
-        measured = gait["metrics"][engine]
-        assert measured["fell"] == claim["fell"]
-        if not claim["fell"]:
-            assert claim["min_distance"] <= measured["distance"]
-            assert abs(measured["drift"]) <= claim["max_drift"]
+    for claim in gait["claims"].values():
+        assert set(claim) == {"noise", "seeds", "min_median_distance", "max_median_drift",
+                              "max_fall_rate"}  # fmt: skip
+        assert claim["seeds"] >= 5 and claim["noise"] > 0
+        assert claim["min_median_distance"] >= 0 and 0 <= claim["max_fall_rate"] <= 1
 
 
 @pytest.mark.parametrize("engine", ENGINES)
 @pytest.mark.parametrize("name", GAITS)
 def test_stored_gait_does_what_its_record_says(name: str, engine: str) -> None:
     gait = load_gait(name)
-    metrics = replay_gait(gait, engine)
     claim = gait["claims"].get(engine)
-    if claim is not None and claim["fell"]:
-        assert metrics["fell"] == 1  # recorded as falling since the engines were corrected
-    elif claim is not None:
-        assert metrics["fell"] == 0
-        assert metrics["time_walked"] == pytest.approx(12.0)
-        assert metrics["distance"] >= claim["min_distance"] > 0.1  # hs_walk: 0.18 m since issue 14
-        assert abs(metrics["drift"]) <= claim["max_drift"]
+    if claim is not None:
+        stats = claim_statistics(replay_over_seeds(gait, engine, claim["seeds"], claim["noise"]))
+        assert stats["median_distance"] >= claim["min_median_distance"], stats
+        assert stats["median_drift"] <= claim["max_median_drift"], stats
+        assert stats["fall_rate"] <= claim["max_fall_rate"], stats
+    metrics = replay_gait(gait, engine)
     _assert_equal_record(metrics, gait["metrics"][engine], engine, gait["engine_versions"][engine])

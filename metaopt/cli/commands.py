@@ -12,6 +12,7 @@ from rich.markup import escape
 
 from metaopt import display
 from metaopt.cli.common import (
+    MAX_INT64,
     build_executor,
     check_executor_options,
     console,
@@ -24,11 +25,12 @@ from metaopt.cli.compare import compare
 from metaopt.cli.new import new
 from metaopt.cli.output import check_output_file, format_option, print_records, written_whole
 from metaopt.cli.report import report, write_replay_video
+from metaopt.cli.robustness import robustness_command
 from metaopt.errors import MetaoptError, SettingWarning
 from metaopt.experiment_store import experiment_names
 from metaopt.export import FORMATS, export_run
 from metaopt.plugins import registry
-from metaopt.replay import replay_best
+from metaopt.replay import replay_best, replay_seeds
 from metaopt.run_loop import (
     AGGREGATES,
     MODES,
@@ -42,8 +44,6 @@ from metaopt.run_loop import (
 from metaopt.settings import parse_problem_settings, split_settings
 from metaopt.store import RunStore
 
-#: The largest seed or budget: SQLite stores integers of 64 bits.
-MAX_INT64 = 2**63 - 1
 #: click 8.2+ raises this for a group called with no arguments (older versions exit at once).
 _NO_ARGS_IS_HELP = getattr(click.exceptions, "NoArgsIsHelpError", ())
 
@@ -183,6 +183,11 @@ def list_plugins(name: str | None) -> None:
     help="How resampled fitnesses combine.",
 )
 @click.option(
+    "--common-seeds",
+    is_flag=True,
+    help="Evaluate every candidate on the same --resample seeds (common random numbers).",
+)
+@click.option(
     "--time-limit",
     type=click.FloatRange(min=0, min_open=True, max=1e6),
     default=None,
@@ -200,6 +205,7 @@ def run_command(
     batch: int,
     resample: int,
     aggregate: str,
+    common_seeds: bool,
     time_limit: float | None,
     executor: str | None,
     workers: int | None,
@@ -219,7 +225,7 @@ def run_command(
         seed=secrets.randbelow(2**31) if seed is None else seed,
         optimizer_params=optimizer_params,
         problem_params=problem_params,
-        settings=RunSettings(mode, batch, resample, aggregate, time_limit),
+        settings=RunSettings(mode, batch, resample, aggregate, time_limit, common_seeds),
     )
     spec.settings.check(spec.budget)
     with RunStore(db_path) as store:
@@ -343,11 +349,19 @@ def export_command(run_id: str, fmt: str, output: str | None, db_path: str) -> N
               help="Change a problem parameter for the replay.")  # fmt: skip
 @click.option("--video", type=click.Path(dir_okay=False), default=None,
               help="Also film the best candidate into this MP4 file.")  # fmt: skip
+@click.option("--seeds", type=click.IntRange(min=1), default=None,
+              help="Re-evaluate with this many fresh seeds: median, IQR, fall rate.")  # fmt: skip
+@click.option("--seed", type=click.IntRange(min=0, max=MAX_INT64), default=0, show_default=True,
+              help="With --seeds: draws the evaluation seeds.")  # fmt: skip
+@scheduling_options
 @db_option
 def replay_command(
-    run_id: str, backend: str | None, settings: tuple[str, ...], video: str | None, db_path: str
-) -> None:
-    """Re-run a stored run's best candidate and compare with what was stored."""
+    run_id: str, backend: str | None, settings: tuple[str, ...], video: str | None,
+    seeds: int | None, seed: int, executor: str | None, workers: int | None,
+    scheduler: str | None, db_path: str,
+) -> None:  # fmt: skip
+    """Re-run a stored run's best candidate and compare with what was stored (with --seeds: a
+    statistic over fresh seeds, for noisy problems)."""
     if video is not None:
         check_output_file(video, "--video", suffix=".mp4")
     require_store(db_path)
@@ -357,11 +371,21 @@ def replay_command(
         problem_info = plugins.problem(run_record.problem)
         pairs = [*settings, *([f"backend={backend}"] if backend is not None else [])]
         overrides = parse_problem_settings(pairs, problem_info)
-        result = replay_best(store, run_id, plugins, overrides)
-    console.print(display.replay_table(result))
-    if result.replayed.fitness is None:
-        errors.print(f"The replay failed: {result.replayed.error}")
-        sys.exit(1)
+        if seeds is not None:
+            with build_executor(executor, workers, scheduler) as pool:
+                over_seeds = replay_seeds(store, run_id, plugins, overrides, seeds, seed, pool)
+        else:
+            result = replay_best(store, run_id, plugins, overrides)
+    if seeds is not None:
+        console.print(display.replay_seeds_table(over_seeds))
+        if all(o.fitness is None for o in over_seeds.outcomes):
+            errors.print(f"Every replay failed: {over_seeds.outcomes[0].error}")
+            sys.exit(1)
+    else:
+        console.print(display.replay_table(result))
+        if result.replayed.fitness is None:
+            errors.print(f"The replay failed: {result.replayed.error}")
+            sys.exit(1)
     if video is not None:
         write_replay_video(db_path, run_id, overrides, video)
 
@@ -369,3 +393,4 @@ def replay_command(
 main.add_command(new)
 main.add_command(report)
 main.add_command(compare)
+main.add_command(robustness_command)

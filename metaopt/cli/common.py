@@ -24,6 +24,8 @@ SCHEDULER_ADDRESS = re.compile(r"((tcp|tls|ucx|inproc)://)?[^\s/:]+(:\d+)?")
 
 #: More local workers than this is a typing slip, not a machine.
 MAX_WORKERS = 1024
+#: The largest seed or budget: SQLite stores integers of 64 bits.
+MAX_INT64 = 2**63 - 1
 
 db_option = click.option(
     "--db",

@@ -11,6 +11,7 @@ import click
 
 from metaopt import display
 from metaopt.cli.common import (
+    MAX_INT64,
     build_executor,
     check_executor_options,
     console,
@@ -52,7 +53,7 @@ MAX_SEEDS = 10_000
 )
 @click.option(
     "--budget",
-    type=click.IntRange(min=1, max=2**63 - 1),
+    type=click.IntRange(min=1, max=MAX_INT64),
     default=None,
     help="Flags form: evaluations per run [the problem's default].",
 )

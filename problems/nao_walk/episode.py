@@ -1,23 +1,25 @@
 """The paper's walking episode: a lock phase, then a gait drives both legs' pitch joints.
 
 One EpisodeRunner per backend: it simulates the lock phase once, keeps the resulting state
-(where the engine restores bit for bit) and starts every episode from it. The walking phase
-stops at a fall. An episode may be disturbed (Disturbance: ground friction, a push, noisy hip
-sensors), all from the walking phase on, so the lock phase stays shared. Metrics and the two
-fitness formulas (robust, paper) live here too.
+(where the engine restores bit for bit, keyed by everything the lock phase depends on) and
+starts every episode from it. The walking phase stops at a fall. An episode may be disturbed
+(Disturbance: ground friction, a push, noisy hip sensors; Push: an impulse on the torso at a
+set time; sensor latency), all from the walking phase on, so the lock phase stays shared.
+Metrics and the two fitness formulas (robust, paper) live here too.
 """
 
 from __future__ import annotations
 
 import math
-from collections.abc import Callable, Sequence
+from collections import deque
+from collections.abc import Callable, Hashable, Sequence
 from dataclasses import asdict, dataclass, field
 from typing import Any, Protocol
 
 import numpy as np
 
 from metaopt.errors import EvaluationError
-from metaopt.physics import PhysicsBackend
+from metaopt.physics import PhysicsBackend, PhysicsSettings, RobotDescription
 
 #: The joints the paper's gait drives (MatsuokaCpg.joints), in the order of its targets.
 DRIVEN_JOINTS = ("llj3", "llj4", "llj5", "rlj3", "rlj4", "rlj5")
@@ -29,6 +31,12 @@ FALL_PENALTY = 1.0
 #: (more than twice the paper's best walking speed of 0.44 m/s).
 FALL_PENALTY_RATE = 1.0
 FITNESS_KINDS = ("robust", "paper")
+#: A foot touches the ground when its normal contact force exceeds this, N (the robot weighs
+#: about 50 N).
+CONTACT_FORCE_N = 5.0
+#: Seconds of the walking phase left out at its start when measuring foot use: the gait grows
+#: over the first second or two.
+SETTLE_S = 2.0
 
 
 @dataclass(slots=True)
@@ -77,13 +85,42 @@ class SineGait:
 
 
 @dataclass(frozen=True)
+class Push:
+    """A shove on the torso: ``impulse`` N·s, horizontal, ``direction`` degrees from forward
+    (90: to the left), at episode time ``time`` s, made as a constant force impulse/period over
+    the one control period that starts then."""
+
+    impulse: float
+    direction: float = 0.0
+    time: float = 6.0
+
+    def force(self, period: float) -> tuple[float, float, float]:
+        """The world-frame force, N, that gives the impulse over one control period."""
+        angle = math.radians(self.direction)
+        magnitude = self.impulse / period
+        return (magnitude * math.cos(angle), magnitude * math.sin(angle), 0.0)
+
+
+@dataclass(frozen=True)
 class EpisodeSettings:
-    """Timing and fall rule of an episode (seconds, metres, degrees)."""
+    """Timing and fall rule of an episode (seconds, metres, degrees), the walking phase's
+    perturbations (a push; ``latency``: the gait senses what was measured that many control
+    steps earlier), and whether to measure foot use (``feet``: costs a contact query a step)."""
 
     duration: float = 15.0
     lock: float = 3.0
     fall_height: float = 0.25
     fall_tilt: float = 60.0
+    push: Push | None = None
+    latency: int = 0
+    feet: bool = False
+
+
+def lock_phase_key(robot: RobotDescription, physics: PhysicsSettings, lock_steps: int) -> Hashable:
+    """Everything the simulated lock phase depends on: the robot as built (masses included),
+    the physics settings (friction, servo gain, substeps, ...) and its length. A saved lock
+    state is reused only for an equal key."""
+    return (robot, physics, lock_steps)
 
 
 #: Disturbance scales at noise = 1: ground friction is multiplied by exp(FRICTION_SPREAD * u),
@@ -132,6 +169,9 @@ class EpisodeResult:
     fall_time: float  #: episode time of the fall; the duration when it did not fall
     height_min: float  #: torso height extremes during the walking phase, m
     height_max: float
+    #: share of the walking phase after SETTLE_S with neither foot touching the ground; NaN
+    #: unless measured (EpisodeSettings.feet) or when the episode ended before SETTLE_S
+    flight: float = math.nan
     #: per control step, when recorded: time since walking began, torso x, y, z (world),
     #: torso tilt (degrees), then targets and measured angles of DRIVEN_JOINTS (radians)
     trajectory: dict[str, np.ndarray] | None = field(default=None, repr=False)
@@ -144,6 +184,8 @@ class EpisodeResult:
     def metrics(self) -> dict[str, float]:
         """The scalar metrics stored with every evaluation."""
         values = {k: float(v) for k, v in asdict(self).items() if k != "trajectory"}
+        if math.isnan(self.flight):
+            del values["flight"]
         values["speed"] = self.speed
         values["height_range"] = self.height_max - self.height_min
         return values
@@ -183,20 +225,39 @@ class EpisodeRunner:
         self._rest = robot.rest_angles
         self._targets = self._rest.copy()
         self._cos_tilt = math.cos(math.radians(settings.fall_tilt))
-        self._after_lock: Any = None
+        #: the saved end of the lock phase, with the lock_phase_key it was simulated under
+        self._after_lock: tuple[Hashable, Any] | None = None
+        self._push_step = -1
+        self._push_force = (0.0, 0.0, 0.0)
+        if settings.push is not None and settings.push.impulse != 0:
+            self._push_step = round((settings.push.time - settings.lock) / period)
+            if not 0 <= self._push_step < self._walk_steps:
+                raise ValueError(
+                    f"the push at {settings.push.time} s is outside the walking phase "
+                    f"({settings.lock} s to {settings.duration} s)"
+                )
+            self._push_force = settings.push.force(period)
+        self._settle_steps = math.ceil(SETTLE_S / period - 1e-9)
 
     @property
     def walk_steps(self) -> int:
         """Control steps in the walking phase (the length a Disturbance must cover)."""
         return self._walk_steps
 
+    @property
+    def lock_key(self) -> Hashable:
+        """The lock_phase_key of this runner's backend as it is now."""
+        backend = self.backend
+        return lock_phase_key(backend.robot, backend.settings, self._lock_steps)
+
     def _start_walking(self, disturbance: Disturbance | None) -> None:
-        """Put the backend at the end of the lock phase (restored or simulated), then set the
-        walking phase's ground friction (nominal, or the disturbance's) and push."""
-        if self._after_lock is None:
-            self._simulate_lock()
+        """Put the backend at the end of the lock phase (restored where a state saved under an
+        equal lock_key exists, simulated otherwise), then set the walking phase's ground
+        friction (nominal, or the disturbance's) and push."""
+        if self._after_lock is not None and self._after_lock[0] == self.lock_key:
+            self.backend.restore_state(self._after_lock[1])
         else:
-            self.backend.restore_state(self._after_lock)
+            self._simulate_lock()
         if disturbance is None:
             self.backend.set_ground_friction(self.backend.settings.friction)
         else:
@@ -206,6 +267,8 @@ class EpisodeRunner:
     def _simulate_lock(self) -> None:
         """The lock phase from reset (nominal friction); kept where the backend restores it
         exactly."""
+        self._after_lock = None
+        key = self.lock_key
         self.backend.reset()
         for _ in range(self._lock_steps):
             self.backend.step(self._rest)
@@ -214,7 +277,7 @@ class EpisodeRunner:
                 "the robot fell during the lock phase; the physics settings do not let it stand"
             )
         if self.backend.restores_exactly:
-            self._after_lock = self.backend.save_state()
+            self._after_lock = (key, self.backend.save_state())
 
     def _fallen(self) -> bool:
         z = float(self.backend.root_position()[2])
@@ -228,9 +291,10 @@ class EpisodeRunner:
         on_step: Callable[[int], None] | None = None,
     ) -> EpisodeResult:
         """One episode: lock phase (all joints held at rest), then gait drives DRIVEN_JOINTS
-        until the end or a fall, under ``disturbance`` if given (None: noise-free).
-        ``record`` keeps a per-step trajectory for plots (true angles, not the sensed ones);
-        ``on_step(steps)`` is called after every walking control step (e.g. to film it)."""
+        until the end or a fall, under ``disturbance`` if given (None: noise-free) and the
+        settings' push and latency. ``record`` keeps a per-step trajectory for plots (true
+        angles, not the sensed ones); ``on_step(steps)`` is called after every walking control
+        step (e.g. to film it)."""
         if disturbance is not None and len(disturbance.sensor_errors) != self._walk_steps:
             raise ValueError(f"the disturbance must cover {self._walk_steps} walking steps")
         backend, targets = self.backend, self._targets
@@ -243,26 +307,39 @@ class EpisodeRunner:
         driven = self._joint_indices(gait.joints)
         fall_height, cos_tilt = self.settings.fall_height, self._cos_tilt
         rows: list[list[float]] = []
-        fell, steps = False, 0
+        fell, steps, airborne = False, 0, 0
         errors = disturbance.sensor_errors if disturbance is not None else None
         sensors = Sensors()
+        # what was measured at the last latency + 1 steps; the gait reads the oldest
+        readings: deque[tuple[float, float, float, float]] = deque(maxlen=self.settings.latency + 1)
+        feet = self.settings.feet
+        root = backend.robot.root.name
         rotation = backend.root_rotation()
         while steps < self._walk_steps:
             angles = backend.joint_angles()
-            sensors.time = steps * self._period
-            sensors.left_hip, sensors.right_hip = float(angles[left]), float(angles[right])
+            left_hip, right_hip = float(angles[left]), float(angles[right])
             if errors is not None:
-                sensors.left_hip += errors[steps][0]
-                sensors.right_hip += errors[steps][1]
-            sensors.roll = math.asin(max(-1.0, min(1.0, float(rotation[2, 1]))))
-            sensors.pitch = math.asin(max(-1.0, min(1.0, -float(rotation[2, 0]))))
+                left_hip += errors[steps][0]
+                right_hip += errors[steps][1]
+            roll = math.asin(max(-1.0, min(1.0, float(rotation[2, 1]))))
+            pitch = math.asin(max(-1.0, min(1.0, -float(rotation[2, 0]))))
+            readings.append((left_hip, right_hip, roll, pitch))
+            sensors.time = steps * self._period
+            sensors.left_hip, sensors.right_hip, sensors.roll, sensors.pitch = readings[0]
             out = gait.act(sensors)
             for index, target in zip(driven, out):
                 targets[index] = target
-            backend.step(targets)
+            if steps == self._push_step:
+                backend.apply_force(root, self._push_force)
+                backend.step(targets)
+                backend.apply_force(root, (0.0, 0.0, 0.0))
+            else:
+                backend.step(targets)
             steps += 1
             if on_step is not None:
                 on_step(steps)
+            if feet and steps > self._settle_steps:
+                airborne += bool(np.all(backend.contact_forces() <= CONTACT_FORCE_N))
             position = backend.root_position()
             z = float(position[2])
             height_min, height_max = min(height_min, z), max(height_max, z)
@@ -279,6 +356,7 @@ class EpisodeRunner:
             raise EvaluationError("the simulation produced a non-finite torso position")
         x, y, _ = (float(v) for v in backend.root_position())
         time_walked = steps * self._period
+        measured = steps - self._settle_steps
         return EpisodeResult(
             distance=x - x0,
             drift=y - y0,
@@ -287,6 +365,7 @@ class EpisodeRunner:
             fall_time=self.settings.lock + time_walked if fell else self.settings.duration,
             height_min=height_min,
             height_max=height_max,
+            flight=airborne / measured if feet and measured > 0 else math.nan,
             trajectory=_trajectory(rows, gait.joints) if record else None,
         )
 

@@ -7,13 +7,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .episode import EpisodeRunner, Gait
-
-#: A foot touches the ground when its normal contact force exceeds this, N (the robot weighs
-#: about 50 N).
-CONTACT_FORCE_N = 5.0
-#: Seconds of the walking phase left out at its start: the gait grows over the first second.
-SETTLE_S = 2.0
+from .episode import CONTACT_FORCE_N, SETTLE_S, EpisodeRunner, Gait
 
 
 @dataclass(frozen=True)

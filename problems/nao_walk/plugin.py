@@ -5,7 +5,9 @@ controller.cpg_space; extended.py's controllers with ``controller``); evaluate r
 15 s episode (episode.py) on the chosen physics backend and returns the fitness and metrics.
 With several backends joined by '+' (``mujoco+pybullet``) it runs the episode on each: the
 fitness and the plain metrics are the worst engine's, and every engine's metrics are added as
-``NAME@ENGINE``.
+``NAME@ENGINE``. Perturbations (docs/robustness.md): friction, servo gain, a mass scale (the
+robot description's bodies scaled before any engine is built), a push on the torso, sensor
+latency, and the seed-drawn noise.
 """
 
 from __future__ import annotations
@@ -20,16 +22,25 @@ from metaopt.errors import ConfigError
 from metaopt.params import Param
 from metaopt.physics import PhysicsSettings, engine_names
 from metaopt.plugins import registry
-from metaopt.problem import Evaluation, Problem, ProblemInfo, Sense
+from metaopt.problem import Evaluation, Problem, ProblemInfo, Sense, StoredCandidate
 from metaopt.space import Space
 
 if TYPE_CHECKING:
     from matplotlib.figure import Figure
 
 from .controller import MatsuokaCpg, cpg_space
-from .episode import FITNESS_KINDS, Disturbance, EpisodeRunner, EpisodeSettings, Gait, fitness
+from .episode import (
+    FITNESS_KINDS,
+    Disturbance,
+    EpisodeRunner,
+    EpisodeSettings,
+    Gait,
+    Push,
+    fitness,
+)
 from .extended import ExtendedCpg, StrideCpg, extended_space, stride_space
 from .robot import nao
+from .robustness import STANDARD_TABLE
 from .video import film
 
 
@@ -55,6 +66,8 @@ CONTROLLER_KINDS = {
     "stride": ControllerKind(stride_space, StrideCpg),
 }
 CONTROLLERS = tuple(CONTROLLER_KINDS)
+#: worlds: none, or one cell of the standard perturbation table drawn per evaluation.
+WORLDS = ("none", "standard")
 
 PARAMS = (
     Param("backend", str, "mujoco", "physics engine (an installed physics backend plugin), or "
@@ -72,6 +85,9 @@ PARAMS = (
     Param("friction", float, 0.0, "ground friction coefficient; inf = no sliding limit (the "
           "paper's simulator; ODE only); 0 = the engine's default (1 on MuJoCo and PyBullet, "
           "inf on ODE); MuJoCo takes at most 3, PyBullet 10", low=0.0),
+    Param("friction_scale", float, 1.0, "multiplies the ground friction (the given one or the "
+          "engine's default; an unlimited one stays unlimited): the friction perturbation",
+          low=0.0, low_open=True, high=100.0),
     Param("slip", float, 5e-3, "force-dependent slip of the ground contacts, m/s per N "
           "(the paper's simulator: 0.005; 0 = none); only ODE has it, the others ignore it",
           low=0.0, high=1.0),
@@ -83,6 +99,21 @@ PARAMS = (
           low=0.0, high=180.0, low_open=True),
     Param("noise", float, 0.0, "disturbance scale drawn from the evaluation's seed: friction, "
           "push, hip sensors (docs/nao-walk.md, Noise); 0 = deterministic", low=0.0, high=10.0),
+    Param("mass_scale", float, 1.0, "every body's mass and inertia multiplied by this",
+          low=0.1, high=10.0),
+    Param("push", float, 0.0, "impulse on the torso, N·s, over one control period at "
+          "push_time; 0 = none", low=0.0, high=100.0),
+    Param("push_direction", float, 0.0, "direction of the push, degrees from forward "
+          "(90 = to the left)", low=-360.0, high=360.0),
+    Param("push_time", float, 6.0, "episode time of the push, s (within the walking phase)",
+          low=0.0),
+    Param("latency", int, 0, "sensor latency: the controller reads what was measured this "
+          "many 20 ms control steps earlier", low=0, high=50),
+    Param("measure_flight", bool, False, "also measure the metric flight: the share of the "
+          "walking phase after 2 s with neither foot on the ground (a contact query per step)"),
+    Param("worlds", str, "none", "none, or standard: each evaluation's seed draws one cell of "
+          "the standard perturbation table (docs/robustness.md) to walk in",
+          choices=WORLDS),
 )  # fmt: skip
 
 
@@ -103,15 +134,30 @@ class NaoWalk(Problem):
         lock: float = 3.0,
         substeps: int = 0,
         friction: float = 0.0,
+        friction_scale: float = 1.0,
         slip: float = 5e-3,
         servo_gain: float = 10.0,
         fall_height: float = 0.25,
         fall_tilt: float = 60.0,
         noise: float = 0.0,
+        mass_scale: float = 1.0,
+        push: float = 0.0,
+        push_direction: float = 0.0,
+        push_time: float = 6.0,
+        latency: int = 0,
+        measure_flight: bool = False,
+        worlds: str = "none",
     ) -> None:
+        #: every parameter, to build the perturbed worlds from (worlds=standard)
+        self._params = {k: v for k, v in locals().items() if k not in ("self", "__class__")}
         if lock >= duration:
             raise ConfigError(
                 f"nao-walk: lock ({lock} s) must be shorter than duration ({duration} s)"
+            )
+        if push and not lock <= push_time < duration:
+            raise ConfigError(
+                f"nao-walk: push_time ({push_time} s) must fall within the walking phase, "
+                f"from lock ({lock} s) to before duration ({duration} s)"
             )
         self.engines = engine_names(backend)
         #: ConfigError for an engine that is not installed, listing the installed ones
@@ -121,7 +167,7 @@ class NaoWalk(Problem):
         #: each engine's physics settings (they differ in the default friction only)
         self.physics_on: dict[str, PhysicsSettings] = {}
         for name, info in self.backend_infos.items():
-            mu = friction or info.default_friction
+            mu = (friction or info.default_friction) * friction_scale
             if mu > info.max_friction:
                 raise ConfigError(
                     f"nao-walk: friction {mu} is more than the {name} backend handles "
@@ -139,11 +185,22 @@ class NaoWalk(Problem):
         self.fitness_kind = fitness
         #: the first engine's physics settings
         self.physics = self.physics_on[self.engines[0]]
-        self.episode = EpisodeSettings(duration, lock, fall_height, fall_tilt)
+        shove = Push(push, push_direction, push_time) if push else None
+        self.episode = EpisodeSettings(
+            duration, lock, fall_height, fall_tilt, shove, latency, measure_flight
+        )
         self.noise = noise
-        self.robot = nao()
+        self.robot = nao().with_mass_scale(mass_scale) if mass_scale != 1 else nao()
         self._limits = {hinge.name: (hinge.lower, hinge.upper) for hinge in self.robot.hinges}
         self._runners: dict[str, EpisodeRunner] = {}
+        if worlds not in WORLDS:
+            raise ConfigError(f"nao-walk: unknown worlds {worlds!r}; accepted: {', '.join(WORLDS)}")
+        self.worlds = worlds
+        self._worlds: dict[int, NaoWalk] = {}
+        if worlds == "standard":
+            for cell in range(len(STANDARD_TABLE.cells)):
+                self._world(cell).close()  # a world refusing its parameters says so now
+                del self._worlds[cell]
 
     @property
     def runner(self) -> EpisodeRunner:
@@ -176,7 +233,24 @@ class NaoWalk(Problem):
         friction = self.physics_on[engine or self.engines[0]].friction
         return Disturbance.draw(self.noise, seed, friction, self.runner.walk_steps)
 
+    def world_of(self, seed: int) -> int:
+        """The standard table's cell an evaluation with seed walks in (worlds=standard): drawn
+        from its own stream of the seed, apart from the noise's."""
+        return int(np.random.default_rng((seed, 1)).integers(len(STANDARD_TABLE.cells)))
+
+    def _world(self, cell: int) -> NaoWalk:
+        """The problem of one cell of the standard table, built on first use."""
+        world = self._worlds.get(cell)
+        if world is None:
+            params = STANDARD_TABLE.cells[cell].apply({**self._params, "worlds": "none"})
+            world = self._worlds[cell] = NaoWalk(**params)
+        return world
+
     def evaluate(self, x: np.ndarray, seed: int) -> Evaluation:
+        if self.worlds == "standard":
+            cell = self.world_of(seed)
+            evaluation = self._world(cell).evaluate(x, seed)
+            return Evaluation(evaluation.fitness, {**evaluation.metrics, "world": float(cell)})
         gait = self.gait(x)
         if len(self.engines) == 1:
             return self._evaluate_on(self.engines[0], gait, seed)
@@ -215,10 +289,19 @@ class NaoWalk(Problem):
         while self._runners:
             _, runner = self._runners.popitem()
             runner.backend.close()
+        while self._worlds:
+            _, world = self._worlds.popitem()
+            world.close()
 
     def __getstate__(self) -> dict[str, Any]:
         # Engines do not pickle; each process builds its own on first use.
-        return {**self.__dict__, "_runners": {}}
+        return {**self.__dict__, "_runners": {}, "_worlds": {}}
+
+
+def _stored_gaits() -> dict[str, StoredCandidate]:
+    from .stored_gaits import stored_candidates  # stored_gaits imports this module
+
+    return stored_candidates()
 
 
 @hookimpl
@@ -239,5 +322,7 @@ def metaopt_problems() -> list[ProblemInfo]:
                 "docs/nao-walk.md."
             ),
             default_budget=750,
+            perturbations=STANDARD_TABLE,
+            stored_candidates=_stored_gaits,
         )
     ]

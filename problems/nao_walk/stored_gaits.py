@@ -1,4 +1,6 @@
-"""Gaits kept as data in gaits/*.json: found by an optimizer, with their provenance and metrics."""
+"""Gaits kept as data in gaits/*.json: found by an optimizer, with their provenance, metrics
+and claims. A claim is a statistic over noise seeds (median distance and |drift|, fall rate),
+not one chaotic trajectory."""
 
 from __future__ import annotations
 
@@ -7,10 +9,19 @@ from importlib.resources import files
 
 import numpy as np
 
+from metaopt.problem import StoredCandidate
+from metaopt.robustness import summarize
+from metaopt.seeding import EvaluationSeeds
+
 from .plugin import CONTROLLER_KINDS, NaoWalk
+from .robustness import BACKGROUND_NOISE
 
 #: The engines a record's metrics cover.
 ENGINES = ("mujoco", "pybullet")
+#: A claim's episodes: this many seeds (EvaluationSeeds(0)) at the robustness table's
+#: background noise.
+CLAIM_SEEDS = 5
+CLAIM_NOISE = BACKGROUND_NOISE
 
 
 def controller_params(controller: str) -> tuple[str, ...]:
@@ -38,6 +49,22 @@ def gait_vector(record: dict) -> np.ndarray:
     return np.array([record["parameters"][name] for name in names], dtype=float)
 
 
+def gait_seed(record: dict) -> int:
+    """The seed of the evaluation a stored gait was found with (older records name only the
+    run's seed)."""
+    found_by = record["found_by"]
+    return found_by.get("evaluation_seed", found_by["seed"])
+
+
+def stored_candidates() -> dict[str, StoredCandidate]:
+    """Every stored gait as nao-walk announces it (for ``metaopt robustness GAIT``)."""
+    records = {name: load_gait(name) for name in stored_gait_names()}
+    return {
+        name: StoredCandidate(record["problem_params"], gait_vector(record), gait_seed(record))
+        for name, record in records.items()
+    }
+
+
 def gait_problem(problem_params: dict, engine: str) -> NaoWalk:
     """A fresh nao-walk problem made with problem_params, backend replaced by engine."""
     from metaopt.params import resolve
@@ -60,6 +87,24 @@ def gait_metrics(problem_params: dict, x: np.ndarray, seed: int, engine: str) ->
 def replay_gait(record: dict, engine: str) -> dict:
     """A stored gait's metrics on engine, re-run as it was found (its evaluation's seed; older
     records name only the run's seed)."""
-    found_by = record["found_by"]
-    seed = found_by.get("evaluation_seed", found_by["seed"])
-    return gait_metrics(record["problem_params"], gait_vector(record), seed, engine)
+    return gait_metrics(record["problem_params"], gait_vector(record), gait_seed(record), engine)
+
+
+def replay_over_seeds(record: dict, engine: str, seeds: int, noise: float) -> list[dict]:
+    """A stored gait's metrics on engine over ``seeds`` seeds (EvaluationSeeds(0)) at
+    ``noise``, from one fresh problem."""
+    draw = EvaluationSeeds(0)
+    problem = gait_problem({**record["problem_params"], "noise": noise}, engine)
+    try:
+        return [dict(problem.evaluate(gait_vector(record), draw(i)).metrics) for i in range(seeds)]
+    finally:
+        problem.close()
+
+
+def claim_statistics(samples: list[dict]) -> dict[str, float]:
+    """What a claim bounds: the median distance and |drift| and the fall rate of episodes."""
+    return {
+        "median_distance": summarize(samples, "distance")[0],
+        "median_drift": summarize(samples, "|drift|")[0],
+        "fall_rate": summarize(samples, "fell")[0],
+    }

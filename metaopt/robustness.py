@@ -1,0 +1,271 @@
+"""How a candidate fares in worlds it was not tuned in: a problem's perturbation table, every
+cell evaluated on every engine over N seeds, summarized as statistics (median, interquartile
+range, rate), not single trajectories.
+
+A problem announces its standard table (ProblemInfo.perturbations): named cells, each a change
+of problem parameters (scale one, set another), under a version string that changes whenever a
+cell does, so tables from different days are comparable. Every cell uses the same N evaluation
+seeds (common random numbers: differences between cells are not seed noise).
+"""
+
+from __future__ import annotations
+
+import csv
+import math
+import statistics
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import TYPE_CHECKING, Any
+
+import numpy as np
+
+from metaopt.errors import ConfigError
+from metaopt.executors import EvaluationTask, Executor, Outcome
+from metaopt.params import resolve
+from metaopt.problem import ProblemInfo
+from metaopt.seeding import EvaluationSeeds
+
+if TYPE_CHECKING:
+    from matplotlib.figure import Figure
+
+
+@dataclass(frozen=True)
+class Perturbation:
+    """One cell of a table: problem parameters multiplied (``scale``) or replaced (``set``)
+    relative to the candidate's own."""
+
+    name: str
+    description: str
+    scale: Mapping[str, float] = field(default_factory=dict)
+    set: Mapping[str, Any] = field(default_factory=dict)
+
+    def apply(self, params: Mapping[str, Any]) -> dict[str, Any]:
+        """The candidate's parameters with this cell's changes."""
+        changed = dict(params)
+        for name, factor in self.scale.items():
+            changed[name] = params[name] * factor
+        changed.update(self.set)
+        return changed
+
+
+@dataclass(frozen=True)
+class PerturbationTable:
+    """A versioned list of cells; ``common`` is set in every cell (e.g. a background noise that
+    makes N seeds N different episodes, or a metric to measure); ``metrics`` are summarized.
+    A metric whose name starts with 'fell' is a rate; others get median and quartiles; one
+    written '|name|' is the metric's absolute value."""
+
+    version: str
+    cells: tuple[Perturbation, ...]
+    metrics: tuple[str, ...]
+    common: Mapping[str, Any] = field(default_factory=dict)
+
+
+@dataclass(frozen=True)
+class Candidate:
+    """What is tested: a decision vector and the problem parameters it was found with."""
+
+    label: str
+    problem: str
+    params: Mapping[str, Any]
+    x: np.ndarray
+
+
+@dataclass
+class CellResult:
+    """One (cell, engine): the N evaluations' metrics (failed ones counted apart)."""
+
+    cell: str
+    engine: str
+    samples: list[dict[str, float]]
+    failed: int
+
+    def summary(self, metric: str) -> tuple[float, float, float]:
+        """summarize() of a metric over this cell's evaluations."""
+        return summarize(self.samples, metric)
+
+
+def summarize(samples: Sequence[Mapping[str, float]], metric: str) -> tuple[float, float, float]:
+    """(median, lower quartile, upper quartile) of a metric over the samples that report it
+    (NaN when none do); for a rate (a name starting with 'fell') its mean thrice; '|name|'
+    summarizes the absolute values."""
+    name = metric.strip("|")
+    values = [s[name] for s in samples if name in s]
+    if metric != name:
+        values = [abs(v) for v in values]
+    if not values:
+        return (math.nan, math.nan, math.nan)
+    if metric.startswith("fell"):
+        rate = statistics.fmean(values)
+        return (rate, rate, rate)
+    low, median, high = np.percentile(values, [25, 50, 75])
+    return (float(median), float(low), float(high))
+
+
+def engine_param(info: ProblemInfo) -> str:
+    """The parameter that names a problem's physics engine (ConfigError when it has none)."""
+    if not any(p.name == "backend" for p in info.params):
+        raise ConfigError(f"problem {info.name!r} has no backend parameter to choose engines by")
+    return "backend"
+
+
+def tasks(
+    candidate: Candidate,
+    info: ProblemInfo,
+    table: PerturbationTable,
+    engines: Sequence[str],
+    seeds: int,
+    seed: int,
+) -> list[tuple[str, str, EvaluationTask]]:
+    """Every (cell, engine, task): the same ``seeds`` evaluation seeds (drawn from ``seed``)
+    in every cell and on every engine. Parameters are checked before anything runs (each
+    cell's problem is built once and closed: engines are built on first use)."""
+    if seeds < 1:
+        raise ConfigError(f"seeds must be at least 1, got {seeds}")
+    backend = engine_param(info)
+    draw = EvaluationSeeds(seed)
+    base = {**candidate.params, **table.common}
+    out = []
+    for cell in table.cells:
+        for engine in engines:
+            given = {**cell.apply(base), backend: engine}
+            params = resolve(info.params, given, f"{info.name} ({cell.name} on {engine})")
+            info.factory(**params).close()  # a problem refusing its parameters says so now
+            for i in range(seeds):
+                index = len(out)
+                out.append((cell.name, engine, EvaluationTask(
+                    index, candidate.x, draw(i), info.factory, params)))  # fmt: skip
+    return out
+
+
+def evaluate(
+    candidate: Candidate,
+    info: ProblemInfo,
+    table: PerturbationTable,
+    engines: Sequence[str],
+    seeds: int,
+    seed: int,
+    executor: Executor,
+) -> list[CellResult]:
+    """The table's cells on every engine, in table order, each over ``seeds`` seeds."""
+    planned = tasks(candidate, info, table, engines, seeds, seed)
+    futures = [(cell, engine, executor.submit(task)) for cell, engine, task in planned]
+    results: dict[tuple[str, str], CellResult] = {}
+    for cell, engine, future in futures:
+        outcome: Outcome = future.result()
+        result = results.setdefault((cell, engine), CellResult(cell, engine, [], 0))
+        if outcome.fitness is None:
+            result.failed += 1
+        else:
+            result.samples.append(outcome.metrics)
+    return list(results.values())
+
+
+CSV_COLUMNS = ("table_version", "candidate", "cell", "engine", "seeds", "failed")
+
+
+def write_csv(
+    path: Path, candidate: Candidate, table: PerturbationTable, results: Sequence[CellResult]
+) -> None:
+    """One row per (cell, engine): the table's version, then each metric's median and
+    quartiles (a rate: its value)."""
+    header = list(CSV_COLUMNS)
+    for metric in table.metrics:
+        header += [metric] if metric.startswith("fell") else [
+            f"{metric}_median", f"{metric}_q25", f"{metric}_q75"]  # fmt: skip
+    rows = []
+    for result in results:
+        row: list[Any] = [table.version, candidate.label, result.cell, result.engine,
+                          len(result.samples) + result.failed, result.failed]  # fmt: skip
+        for metric in table.metrics:
+            median, low, high = result.summary(metric)
+            row += [median] if metric.startswith("fell") else [median, low, high]
+        rows.append(row)
+    partial = path.with_name(path.name + ".partial")
+    with partial.open("w", newline="", encoding="utf-8") as handle:
+        writer = csv.writer(handle)
+        writer.writerow(header)
+        writer.writerows(rows)
+    partial.replace(path)
+
+
+def figure(
+    candidate: Candidate,
+    table: PerturbationTable,
+    results: Sequence[CellResult],
+    speed: str,
+    fell: str,
+) -> Figure:
+    """Per cell and engine: the median of ``speed`` with its interquartile range (top) and the
+    rate of ``fell`` (bottom)."""
+    from matplotlib.figure import Figure
+
+    cells = [c.name for c in table.cells]
+    engines = list(dict.fromkeys(r.engine for r in results))
+    by_key = {(r.cell, r.engine): r for r in results}
+    fig = Figure(figsize=(8.0, 5.6), layout="constrained")
+    top, bottom = fig.subplots(2, 1, sharex=True, height_ratios=(3, 2))
+    width = 0.8 / max(1, len(engines))
+    where = np.arange(len(cells))
+    for k, engine in enumerate(engines):
+        offset = where - 0.4 + width * (k + 0.5)
+        stats = [by_key[(c, engine)].summary(speed) for c in cells]
+        median = np.array([s[0] for s in stats])
+        spread = np.array([[s[0] - s[1] for s in stats], [s[2] - s[0] for s in stats]])
+        top.bar(offset, median, width, yerr=spread, capsize=2, label=engine)
+        bottom.bar(offset, [by_key[(c, engine)].summary(fell)[0] for c in cells], width)
+    top.set_ylabel(f"{speed} (median, IQR)")
+    top.set_title(f"{candidate.label}: perturbation table {table.version}", fontsize="medium")
+    top.legend(fontsize="small")
+    top.grid(alpha=0.3, axis="y")
+    bottom.set_ylabel(f"{fell} rate")
+    bottom.set_ylim(0, 1)
+    bottom.grid(alpha=0.3, axis="y")
+    bottom.set_xticks(where, cells, rotation=30, ha="right", fontsize="small")
+    return fig
+
+
+def find_candidate(
+    target: str, problems: Mapping[str, ProblemInfo], db_path: str
+) -> tuple[Candidate, ProblemInfo]:
+    """``target`` as a candidate: a problem's stored candidate by name, else a run id in the
+    store at db_path, whose best evaluation is taken."""
+    for info in problems.values():
+        stored = info.stored_candidates() if info.stored_candidates else {}
+        if target in stored:
+            params = resolve(info.params, stored[target].params, info.name)
+            return Candidate(target, info.name, params, stored[target].x), info
+    from metaopt.replay import stored_best
+    from metaopt.store import RunStore
+
+    if not target.isdigit() or not Path(db_path).exists():
+        names = sorted(n for i in problems.values() if i.stored_candidates
+                       for n in i.stored_candidates())  # fmt: skip
+        where = f"a run id in {db_path}" if Path(db_path).exists() else f"no store at {db_path}"
+        raise ConfigError(
+            f"{target!r} is neither a stored candidate ({', '.join(names) or 'none'}) nor "
+            f"a run ({where})"
+        )
+    with RunStore(db_path) as store:
+        run, best = stored_best(store, target)
+    info = problems.get(run.problem)
+    if info is None:
+        raise ConfigError(f"run {run.id}'s problem {run.problem!r} is not installed")
+    params = resolve(info.params, run.problem_params, info.name)
+    return Candidate(f"run {run.id}", info.name, params, np.asarray(best.x)), info
+
+
+def select_cells(table: PerturbationTable, names: Sequence[str] | None) -> PerturbationTable:
+    """The table restricted to the named cells, in table order (all when names is None)."""
+    if names is None:
+        return table
+    known = [cell.name for cell in table.cells]
+    unknown = [name for name in names if name not in known]
+    if unknown:
+        raise ConfigError(
+            f"no perturbation {unknown[0]!r} in table {table.version}; accepted: "
+            + ", ".join(known)
+        )
+    cells = tuple(cell for cell in table.cells if cell.name in names)
+    return PerturbationTable(table.version, cells, table.metrics, table.common)

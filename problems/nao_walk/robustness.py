@@ -1,0 +1,37 @@
+"""nao-walk's standard perturbation table (docs/robustness.md): the worlds a gait is tried in
+by ``metaopt robustness``. Change a cell, and the version, together."""
+
+from __future__ import annotations
+
+from metaopt.robustness import Perturbation, PerturbationTable
+
+#: Every cell runs at this background noise (friction within ±2 %, a 5 mm/s push as walking
+#: starts, 0.1° of hip sensor error), so that N seeds are N different episodes of a chaotic
+#: walk: the table's figures are statistics, not single trajectories.
+BACKGROUND_NOISE = 0.1
+
+STANDARD_TABLE = PerturbationTable(
+    version="nao-walk-1",
+    cells=(
+        Perturbation("nominal", "the gait's own settings"),
+        Perturbation("friction x0.7", "ground friction x0.7", scale={"friction_scale": 0.7}),
+        Perturbation("friction x1.3", "ground friction x1.3", scale={"friction_scale": 1.3}),
+        Perturbation("mass x0.9", "every body's mass and inertia x0.9",
+                     scale={"mass_scale": 0.9}),
+        Perturbation("mass x1.1", "every body's mass and inertia x1.1",
+                     scale={"mass_scale": 1.1}),
+        Perturbation("servo gain x0.8", "joint servo gain x0.8", scale={"servo_gain": 0.8}),
+        Perturbation("servo gain x1.2", "joint servo gain x1.2", scale={"servo_gain": 1.2}),
+        Perturbation("push forward", "1 N·s forward on the torso at t = 6 s",
+                     set={"push": 1.0, "push_direction": 0.0, "push_time": 6.0}),
+        Perturbation("push sideways", "1 N·s to the left on the torso at t = 6 s",
+                     set={"push": 1.0, "push_direction": 90.0, "push_time": 6.0}),
+        Perturbation("latency 1", "the controller senses one control step (20 ms) late",
+                     set={"latency": 1}),
+        Perturbation("noise 0.5", "nao-walk's seed-drawn noise at 0.5 instead of the "
+                     "background 0.1", set={"noise": 0.5}),
+    ),
+    metrics=("speed", "|drift|", "fell", "flight"),
+    # a candidate searched with worlds=standard is tried in each cell alone
+    common={"noise": BACKGROUND_NOISE, "measure_flight": True, "worlds": "none"},
+)  # fmt: skip

@@ -1,0 +1,233 @@
+"""nao-walk's perturbations do what they say on every engine: a push changes the robot's
+momentum by its impulse, a mass scale is the mass and inertia the engine holds, latency delays
+what the gait senses by exactly k steps, flight is the footfalls' share; and a lock phase
+saved for one model is never restored into another; worlds=standard draws a cell of the
+standard table per evaluation."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from metaopt import ConfigError
+from metaopt.executors import EvaluationTask, evaluate_task, release_problems
+from metaopt.params import resolve
+from metaopt.physics import PhysicsSettings
+from metaopt.plugins import registry
+from metaopt_problems.nao_walk.episode import (
+    EpisodeRunner,
+    EpisodeSettings,
+    Push,
+    Sensors,
+    SineGait,
+)
+from metaopt_problems.nao_walk.footfalls import footfalls
+from metaopt_problems.nao_walk.robot import nao
+from metaopt_problems.nao_walk.robustness import STANDARD_TABLE
+from metaopt_problems.nao_walk.stored_gaits import gait_vector, load_gait
+
+#: every installed engine (an engine plugin added later is covered without a change here)
+BACKENDS = tuple(registry().physics_backends)
+SHORT = {"duration": 4.0, "lock": 1.0}
+
+
+def _params(backend: str, **given: object) -> dict:
+    info = registry().problem("nao-walk")
+    return resolve(info.params, {"backend": backend, **given}, "nao-walk")
+
+
+def _problem(backend: str, **given: object):
+    return registry().problem("nao-walk").factory(**_params(backend, **given))
+
+
+class SensingSine(SineGait):
+    """The sine gait (its targets ignore the sensors), keeping every reading it was given."""
+
+    def reset(self) -> None:
+        self.seen: list[tuple[float, ...]] = []
+
+    def act(self, sensors: Sensors) -> tuple[float, ...]:
+        self.seen.append((sensors.left_hip, sensors.right_hip, sensors.roll, sensors.pitch))
+        return super().act(sensors)
+
+
+def _runner(backend: str, friction: float = 1.0, **settings: object) -> EpisodeRunner:
+    physics = PhysicsSettings(friction=friction)
+    engine = registry().physics_backend(backend).factory(nao(), physics)
+    return EpisodeRunner(engine, EpisodeSettings(**{**SHORT, **settings}))
+
+
+def _centre_of_mass(runner: EpisodeRunner) -> np.ndarray:
+    backend = runner.backend
+    bodies = backend.robot.bodies
+    weighted = sum(b.mass * backend.body_position(b.name) for b in bodies)
+    return weighted / sum(b.mass for b in bodies)
+
+
+@pytest.mark.parametrize("backend", BACKENDS)
+@pytest.mark.parametrize("direction", [0.0, 90.0])
+def test_a_push_changes_the_robots_momentum_by_its_impulse(backend: str, direction: float):
+    # On (almost) frictionless ground the ground cannot take the impulse back: the centre of
+    # mass's horizontal velocity must change by impulse / mass in the push's direction.
+    impulse, period = 0.5, 0.02
+    velocities = []
+    for push in (None, Push(impulse, direction, 1.2)):
+        runner = _runner(backend, friction=0.001, push=push)
+        before = []
+
+        def measure(steps: int, runner=runner, before=before) -> None:
+            if steps in (12, 14):  # the push acts during step 11 (t = 1.2 s after 1 s lock)
+                before.append(_centre_of_mass(runner))
+
+        runner.run(SensingSine(), on_step=measure)
+        velocities.append((before[1] - before[0])[:2] / (2 * period))
+    change = velocities[1] - velocities[0]
+    mass = nao().total_mass
+    angle = math.radians(direction)
+    expected = impulse / mass * np.array([math.cos(angle), math.sin(angle)])
+    assert change == pytest.approx(expected, abs=0.05 * impulse / mass)
+
+
+@pytest.mark.parametrize("backend", BACKENDS)
+def test_a_push_changes_nothing_before_its_time_and_the_walk_after(backend: str) -> None:
+    plain = _runner(backend).run(SineGait(), record=True).trajectory
+    pushed = _runner(backend, push=Push(1.0, 0.0, 2.0)).run(SineGait(), record=True).trajectory
+    step = round((2.0 - 1.0) / 0.02)  # rows before the push step's row are identical
+    for name in ("x", "y", "z"):
+        assert np.array_equal(plain[name][:step], pushed[name][:step])
+    assert abs(pushed["x"][step + 5] - plain["x"][step + 5]) > 1e-3
+
+
+@pytest.mark.parametrize("backend", BACKENDS)
+def test_mass_scale_is_the_mass_and_inertia_the_engine_holds(backend: str) -> None:
+    nominal, heavier = nao(), _problem(backend, mass_scale=1.1, **SHORT)
+    try:
+        engine = heavier.runner.backend
+        for body in nominal.bodies:
+            assert engine.body_mass(body.name) == pytest.approx(1.1 * body.mass, rel=1e-6)
+            assert engine.body_inertia(body.name) == pytest.approx(
+                [1.1 * moment for moment in body.inertia], rel=1e-6
+            )
+    finally:
+        heavier.close()
+
+
+@pytest.mark.parametrize("backend", BACKENDS)
+@pytest.mark.parametrize("latency", [1, 3])
+def test_latency_delays_what_the_gait_senses_by_exactly_k_steps(backend: str, latency: int):
+    prompt, late = SensingSine(), SensingSine()
+    first = _runner(backend).run(prompt, record=True)
+    second = _runner(backend, latency=latency).run(late, record=True)
+    # the sine gait ignores what it senses: the same walk, so the same measurements ...
+    assert np.array_equal(first.trajectory["x"], second.trajectory["x"])
+    assert len(late.seen) == len(prompt.seen) > 100
+    # ... which the late gait reads k steps later (the first reading until then)
+    assert late.seen[latency:] == prompt.seen[:-latency]
+    assert late.seen[:latency] == [prompt.seen[0]] * latency
+
+
+@pytest.mark.parametrize("backend", BACKENDS)
+def test_flight_is_the_share_footfalls_measures(backend: str) -> None:
+    runner = _runner(backend, feet=True)
+    gait = SineGait(period=0.5, hip=0.3, knee=0.6)
+    assert runner.run(gait).flight == footfalls(runner, gait).flight
+    assert "flight" not in _runner(backend).run(gait).metrics()
+
+
+def test_a_push_outside_the_walking_phase_is_refused() -> None:
+    with pytest.raises(ConfigError, match="push_time"):
+        _problem("mujoco", push=1.0, push_time=0.5, **SHORT)
+    with pytest.raises(ConfigError, match="mass_scale"):
+        _params("mujoco", mass_scale=0.0)
+    with pytest.raises(ConfigError, match="latency"):
+        _params("mujoco", latency=-1)
+
+
+@pytest.mark.parametrize("backend", BACKENDS)
+def test_a_lock_phase_is_only_restored_into_the_model_it_was_simulated_for(backend: str):
+    # the key holds what the lock phase depends on, not what only the walking phase does
+    def key(**given: object):
+        problem = _problem(backend, **SHORT, **given)
+        try:
+            return problem.runner.lock_key
+        finally:
+            problem.close()
+
+    nominal = key()
+    for changed in ({"mass_scale": 1.1}, {"friction": 0.7}, {"servo_gain": 8.0}):
+        assert key(**changed) != nominal, changed
+    for walking_only in ({"push": 1.0, "push_time": 2.0}, {"latency": 1}, {"noise": 1.0}):
+        assert key(**walking_only) == nominal, walking_only
+    # a runner that saved the nominal lock phase, given a heavier robot's engine, simulates
+    # the heavier robot's lock phase instead of restoring the nominal one
+    x = gait_vector(load_gait())
+    light, heavy = _problem(backend, **SHORT), _problem(backend, mass_scale=1.1, **SHORT)
+    fresh = _problem(backend, mass_scale=1.1, **SHORT)
+    try:
+        light_metrics = light.evaluate(x, 0).metrics
+        light.runner.backend = heavy.runner.backend
+        swapped = light.evaluate(x, 0).metrics
+        assert swapped == fresh.evaluate(x, 0).metrics != light_metrics
+    finally:
+        for problem in (light, heavy, fresh):
+            problem.close()
+
+
+def test_evaluations_in_one_process_never_share_a_perturbed_model() -> None:
+    # the worker's problem cache is keyed by every parameter: the heavier robot evaluated
+    # after the nominal one in one process equals it evaluated first
+    factory = registry().problem("nao-walk").factory
+    x = gait_vector(load_gait())
+
+    def metrics(mass_scale: float) -> dict[str, float]:
+        task = EvaluationTask(0, x, 0, factory, _params("mujoco", mass_scale=mass_scale, **SHORT))
+        return evaluate_task(task).metrics
+
+    try:
+        heavy_first = metrics(1.1)
+        release_problems()
+        nominal = metrics(1.0)
+        assert metrics(1.1) == heavy_first != nominal
+    finally:
+        release_problems()
+
+
+@pytest.mark.parametrize("backend", BACKENDS)
+def test_a_perturbed_episode_is_deterministic(backend: str) -> None:
+    given = {"mass_scale": 0.9, "push": 1.0, "push_time": 2.0, "latency": 1, "noise": 1.0}
+    x = gait_vector(load_gait())
+    first, second = _problem(backend, **given, **SHORT), _problem(backend, **given, **SHORT)
+    try:
+        assert first.evaluate(x, 5).metrics == second.evaluate(x, 5).metrics
+        assert first.evaluate(x, 5).metrics == first.evaluate(x, 5).metrics
+    finally:
+        first.close()
+        second.close()
+
+
+def test_worlds_standard_walks_each_evaluation_in_a_seed_drawn_cell_of_the_table() -> None:
+    world = {"duration": 7.0, "lock": 1.0, "noise": 0.1}
+    sampled = _problem("mujoco", worlds="standard", **world)
+    cells = [sampled.world_of(seed) for seed in range(400)]
+    assert cells == [sampled.world_of(seed) for seed in range(400)]
+    assert set(cells) == set(range(len(STANDARD_TABLE.cells)))
+    x = gait_vector(load_gait())
+    try:
+        for name in ("mass x1.1", "push forward"):
+            index = [c.name for c in STANDARD_TABLE.cells].index(name)
+            seed = cells.index(index)
+            given = STANDARD_TABLE.cells[index].apply(_params("mujoco", **world))
+            direct = registry().problem("nao-walk").factory(**given)
+            try:
+                expected = direct.evaluate(x, seed)
+            finally:
+                direct.close()
+            evaluation = sampled.evaluate(x, seed)
+            assert evaluation.metrics == {**expected.metrics, "world": float(index)}
+            assert evaluation.fitness == expected.fitness
+    finally:
+        sampled.close()
+    with pytest.raises(ConfigError, match="push_time"):  # the push cells need 6 s
+        _problem("mujoco", worlds="standard", **SHORT)

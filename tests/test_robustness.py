@@ -1,0 +1,137 @@
+"""`metaopt robustness`: a candidate over its problem's versioned perturbation table, every cell
+on every engine over the same N seeds, summarized as medians, quartiles and rates; end to end
+through the real command, deterministic whatever runs the evaluations."""
+
+from __future__ import annotations
+
+import csv
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from metaopt import ConfigError
+from metaopt.plugins import registry
+from metaopt.robustness import (
+    Candidate,
+    CellResult,
+    Perturbation,
+    find_candidate,
+    select_cells,
+    tasks,
+)
+from metaopt_problems.nao_walk.robustness import STANDARD_TABLE
+from metaopt_problems.nao_walk.stored_gaits import gait_vector, load_gait
+from tests.conftest import metaopt_cli
+
+TINY = ("hs_walk", "--engines", "mujoco+pybullet", "--seeds", "2", "--cells",
+        "nominal,latency 1", "--set", "duration=4", "--set", "lock=1")  # fmt: skip
+
+
+def test_a_cell_scales_or_sets_the_candidates_parameters() -> None:
+    cell = Perturbation("x", "", scale={"friction": 0.7}, set={"push": 1.0})
+    assert cell.apply({"friction": 2.0, "push": 0.0, "noise": 0.3}) == pytest.approx(
+        {"friction": 1.4, "push": 1.0, "noise": 0.3}
+    )
+
+
+def test_the_standard_table_is_versioned_and_names_the_issues_perturbations() -> None:
+    info = registry().problem("nao-walk")
+    assert info.perturbations is STANDARD_TABLE
+    assert STANDARD_TABLE.version == "nao-walk-1"
+    names = [cell.name for cell in STANDARD_TABLE.cells]
+    assert names[0] == "nominal" and len(set(names)) == len(names) == 11
+    assert STANDARD_TABLE.metrics == ("speed", "|drift|", "fell", "flight")
+
+
+def test_every_cell_and_engine_uses_the_same_seeds_and_checked_parameters() -> None:
+    info = registry().problem("nao-walk")
+    candidate, _ = find_candidate("hs_walk", registry().problems, "none.db")
+    planned = tasks(candidate, info, STANDARD_TABLE, ("mujoco", "pybullet"), 3, seed=4)
+    assert len(planned) == 11 * 2 * 3
+    seeds = {(cell, engine): [] for cell, engine, _ in planned}
+    for cell, engine, task in planned:
+        seeds[cell, engine].append(task.seed)
+        assert task.params["backend"] == engine
+        assert task.params["measure_flight"] is True
+    assert len({tuple(s) for s in seeds.values()}) == 1
+    by_cell = {cell: task.params for cell, _, task in planned}
+    assert by_cell["friction x0.7"]["friction"] == pytest.approx(0.7)
+    assert by_cell["mass x1.1"]["mass_scale"] == pytest.approx(1.1)
+    assert by_cell["push sideways"]["push_direction"] == 90.0
+    assert by_cell["noise 0.5"]["noise"] == 0.5 and by_cell["nominal"]["noise"] == 0.1
+    # a candidate searched over sampled worlds is tried in each cell alone
+    sampled = Candidate("c", "nao-walk", {**candidate.params, "worlds": "standard"}, candidate.x)
+    planned = tasks(sampled, info, STANDARD_TABLE, ("mujoco",), 1, seed=4)
+    assert {task.params["worlds"] for _, _, task in planned} == {"none"}
+    with pytest.raises(ConfigError, match="friction"):  # MuJoCo's limit is 3
+        tasks(Candidate("c", "nao-walk", {**candidate.params, "friction": 2.5},
+                        candidate.x), info, STANDARD_TABLE, ("mujoco",), 1, 0)  # fmt: skip
+
+
+def test_summaries_are_medians_quartiles_and_rates() -> None:
+    result = CellResult("c", "e", [{"speed": v, "drift": -v, "fell": float(v > 2)}
+                                   for v in (1.0, 2.0, 3.0, 4.0)], 1)  # fmt: skip
+    assert result.summary("speed") == (2.5, 1.75, 3.25)
+    assert result.summary("|drift|") == (2.5, 1.75, 3.25)
+    assert result.summary("fell") == (0.5, 0.5, 0.5)
+    assert np.isnan(result.summary("flight")[0])
+
+
+def test_select_cells_keeps_table_order_and_refuses_unknown_names() -> None:
+    table = select_cells(STANDARD_TABLE, ["latency 1", "nominal"])
+    assert [c.name for c in table.cells] == ["nominal", "latency 1"]
+    assert table.version == STANDARD_TABLE.version
+    with pytest.raises(ConfigError, match="accepted: nominal"):
+        select_cells(STANDARD_TABLE, ["gravity"])
+
+
+def test_find_candidate_takes_stored_gaits_by_name() -> None:
+    candidate, info = find_candidate("stride_mujoco", registry().problems, "none.db")
+    assert info.name == "nao-walk" and candidate.params["controller"] == "stride"
+    assert np.array_equal(candidate.x, gait_vector(load_gait("stride_mujoco")))
+    with pytest.raises(ConfigError, match="neither a stored candidate"):
+        find_candidate("no_such_gait", registry().problems, "none.db")
+
+
+def _rows(path: Path) -> list[dict[str, str]]:
+    with path.open(newline="") as handle:
+        return list(csv.DictReader(handle))
+
+
+@pytest.mark.slow
+def test_robustness_command_end_to_end_and_deterministic(tmp_path: Path) -> None:
+    serial = metaopt_cli("robustness", *TINY, "--csv", "serial.csv", "--figure", "r.png",
+                         cwd=tmp_path)  # fmt: skip
+    assert serial.returncode == 0, serial.stderr
+    assert "nao-walk-1" in serial.stdout and "latency 1" in serial.stdout
+    assert (tmp_path / "r.png").stat().st_size > 1000
+    rows = _rows(tmp_path / "serial.csv")
+    assert [(r["cell"], r["engine"]) for r in rows] == [
+        (cell, engine) for cell in ("nominal", "latency 1")
+        for engine in ("mujoco", "pybullet")
+    ]  # fmt: skip
+    for row in rows:
+        assert row["table_version"] == "nao-walk-1" and row["candidate"] == "hs_walk"
+        assert (row["seeds"], row["failed"]) == ("2", "0")
+        assert float(row["fell"]) in (0.0, 0.5, 1.0)
+        low, median, high = (float(row[f"speed_{k}"]) for k in ("q25", "median", "q75"))
+        assert low <= median <= high
+    # the same numbers from two worker processes
+    pooled = metaopt_cli("robustness", *TINY, "--csv", "pooled.csv", "--workers", "2",
+                         cwd=tmp_path)  # fmt: skip
+    assert pooled.returncode == 0, pooled.stderr
+    assert _rows(tmp_path / "pooled.csv") == rows
+
+
+def test_robustness_command_refuses_bad_input_in_one_line(tmp_path: Path) -> None:
+    for args, message in (
+        (("no_such_gait",), "neither a stored candidate"),
+        (("hs_walk", "--engines", "bullet"), "bullet"),
+        (("hs_walk", "--cells", "gravity"), "no perturbation 'gravity'"),
+        (("hs_walk", "--set", "friction=5", "--engines", "mujoco"), "friction"),
+    ):
+        result = metaopt_cli("robustness", *args, "--csv", "out.csv", cwd=tmp_path)
+        assert result.returncode == 2, (args, result.stderr)
+        assert message in result.stderr and "Traceback" not in result.stderr
+        assert not (tmp_path / "out.csv").exists()
