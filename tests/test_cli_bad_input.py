@@ -70,7 +70,7 @@ _RUN_ID = st.one_of(
 RUN_BASE = ["run", "-o", "hs", "-p", "sphere", "--budget", "5", "--set", "dim=2"]
 COMPARE_BASE = ["compare", "-o", "hs", "-p", "sphere", "--seeds", "1", "--budget", "5"]
 COMMANDS = ["list", "run", "resume", "runs", "show", "export", "replay", "report", "compare",
-            "new"]  # fmt: skip
+            "robustness", "new"]  # fmt: skip
 OPTIMIZERS, PROBLEMS = ["ga", "hs", "random"], ["sphere", "rastrigin", "nao-walk"]
 
 
@@ -195,6 +195,28 @@ _CASES = {
         ),
     ),
     "replay --db": _db(["replay", "1"]),
+    "replay --seeds": _option(["replay", "1"], "--seeds", _int_outside(1, None)),
+    "replay --seed": _option(["replay", "1", "--seeds", "2"], "--seed", _int_outside(0, MAX_INT64)),
+    # robustness (a stored nao-walk gait; every case is refused before any episode)
+    "robustness NAME": _argument(["robustness"], _RUN_ID),
+    "robustness --engines": _option(
+        ["robustness", "hs_walk"], "--engines", _unknown_name(["mujoco", "pybullet", "ode"])
+    ),
+    "robustness --seeds": _option(["robustness", "hs_walk"], "--seeds", _int_outside(1, 10_000)),
+    "robustness --seed": _option(["robustness", "hs_walk"], "--seed", _int_outside(0, MAX_INT64)),
+    "robustness --cells": _option(["robustness", "hs_walk"], "--cells", _text(1)),
+    "robustness --set": lambda d: _option(
+        ["robustness", "hs_walk"],
+        "--set",
+        st.sampled_from(["zz=1", "noise=-1", "mass_scale=0", "latency=x", "lock=20", "x"]),
+        also=("noise", "mass_scale", "latency", "lock", "zz"),
+    )(d),
+    "robustness --csv": _option(
+        ["robustness", "hs_walk"], "--csv", st.sampled_from([*BAD_FILE_PATHS, "out.txt"])
+    ),
+    "robustness --figure": _option(
+        ["robustness", "hs_walk"], "--figure", st.sampled_from([*BAD_FILE_PATHS, "out.jpg"])
+    ),
     # report
     "report RUN": _argument(["report"], _RUN_ID),
     "report --out": _option(["report", "1"], "--out", st.sampled_from(BAD_FOLDER_PATHS)),

@@ -56,7 +56,7 @@ def test_every_cell_and_engine_uses_the_same_seeds_and_checked_parameters() -> N
         assert task.params["measure_flight"] is True
     assert len({tuple(s) for s in seeds.values()}) == 1
     by_cell = {cell: task.params for cell, _, task in planned}
-    assert by_cell["friction x0.7"]["friction"] == pytest.approx(0.7)
+    assert by_cell["friction x0.7"]["friction_scale"] == pytest.approx(0.7)
     assert by_cell["mass x1.1"]["mass_scale"] == pytest.approx(1.1)
     assert by_cell["push sideways"]["push_direction"] == 90.0
     assert by_cell["noise 0.5"]["noise"] == 0.5 and by_cell["nominal"]["noise"] == 0.1
@@ -135,3 +135,25 @@ def test_robustness_command_refuses_bad_input_in_one_line(tmp_path: Path) -> Non
         assert result.returncode == 2, (args, result.stderr)
         assert message in result.stderr and "Traceback" not in result.stderr
         assert not (tmp_path / "out.csv").exists()
+
+
+@pytest.mark.parametrize("engine", ["mujoco", "pybullet", "ode"])
+def test_the_friction_cells_change_the_friction_the_engine_holds(engine: str) -> None:
+    """friction_scale multiplies each engine's own default friction, read back from the engine;
+    on ODE as the server (unlimited friction) there is no coefficient to scale."""
+    info = registry().physics_backends[engine]
+    if info.unavailable:
+        pytest.skip(info.unavailable)
+    problem_info = registry().problem("nao-walk")
+    read = {}
+    for scale in (1.0, 0.7):
+        problem = problem_info.factory(backend=engine, friction_scale=scale)
+        try:
+            read[scale] = problem.runner.backend.ground_friction()
+        finally:
+            problem.close()
+    if engine == "ode":
+        assert read[1.0] == read[0.7] == float("inf")
+    else:
+        assert read[1.0] == pytest.approx(info.default_friction)
+        assert read[0.7] == pytest.approx(0.7 * info.default_friction)

@@ -85,11 +85,11 @@ def robustness_command(
     candidate = robustness.Candidate(
         candidate.label, candidate.problem, {**candidate.params, **changes}, candidate.x
     )
-    names = engine_names(engines) if engines else tuple(plugins.physics_backends)
+    names = engine_names(engines) if engines is not None else tuple(plugins.physics_backends)
     for name in names:
         plugins.physics_backend(name)  # ConfigError listing the installed ones
     table = robustness.select_cells(
-        info.perturbations, [c.strip() for c in cells.split(",")] if cells else None
+        info.perturbations, [c.strip() for c in cells.split(",")] if cells is not None else None
     )
     robustness.tasks(candidate, info, table, names, seeds, seed)  # bad parameters: before work
     console.print(f"perturbation table {table.version}: {len(table.cells)} cells x "
