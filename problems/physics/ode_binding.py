@@ -146,8 +146,6 @@ _SIGNATURES: dict[str, tuple[type | None, list]] = {
     "dJointSetFeedback": (None, [_ID, POINTER(JointFeedback)]),
     "dJointSetHingeAnchor": (None, [_ID, dReal, dReal, dReal]),
     "dJointSetHingeAxis": (None, [_ID, dReal, dReal, dReal]),
-    "dJointGetHingeAnchor": (None, [_ID, _P]),
-    "dJointGetHingeAxis": (None, [_ID, _P]),
     "dJointSetHingeParam": (None, [_ID, c_int, dReal]),
     "dJointGetHingeParam": (dReal, [_ID, c_int]),
     "dJointGetHingeAngle": (dReal, [_ID]),
