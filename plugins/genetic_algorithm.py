@@ -63,9 +63,9 @@ def sbx(
     u = rng.random(first.shape)
     beta = np.where(u <= 0.5, 2.0 * u, 0.5 / (1.0 - u)) ** (1.0 / (eta + 1.0))
     crossed = rng.random(first.shape) < 0.5
-    beta = np.where(crossed, beta, 1.0)  # beta 1: the parents' own values
     mean, half_spread = 0.5 * (first + second), 0.5 * beta * (second - first)
-    low, high = mean - half_spread, mean + half_spread
+    low = np.where(crossed, mean - half_spread, first)
+    high = np.where(crossed, mean + half_spread, second)
     swapped = rng.random(first.shape) < 0.5
     return np.where(swapped, high, low), np.where(swapped, low, high)
 
