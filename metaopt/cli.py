@@ -133,6 +133,12 @@ def list_plugins(name: str | None) -> None:
     default=None,
     help="Seconds per evaluation before it is stopped and stored as failed.",
 )
+@click.option(
+    "--target",
+    type=float,
+    default=None,
+    help="Stop once a fitness this good is found (at or below it; at or above when maximizing).",
+)
 @scheduling_options
 @db_option
 def run_command(
@@ -146,6 +152,7 @@ def run_command(
     resample: int,
     aggregate: str,
     time_limit: float | None,
+    target: float | None,
     executor: str | None,
     workers: int | None,
     scheduler: str | None,
@@ -163,7 +170,7 @@ def run_command(
         seed=secrets.randbelow(2**31) if seed is None else seed,
         optimizer_params=optimizer_params,
         problem_params=problem_params,
-        settings=RunSettings(mode, batch, resample, aggregate, time_limit),
+        settings=RunSettings(mode, batch, resample, aggregate, time_limit, target),
     )
     if spec.budget < 1:
         raise click.BadParameter(f"must be at least 1, got {spec.budget}", param_hint="--budget")
