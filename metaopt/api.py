@@ -93,11 +93,8 @@ def create_optimizer(
     """
     info = registry().optimizer(name)
     given = dict(params)
-    if budget is not None:
-        if "budget" in given:
-            raise ConfigError(f"{name}: budget given twice; give it once, as budget=...")
-        if any(p.name == "budget" for p in info.params):
-            given["budget"] = budget
+    if budget is not None and any(p.name == "budget" for p in info.params):
+        given["budget"] = budget
     return info.factory(as_space(bounds), seed, **resolve(info.params, given, name))
 
 
