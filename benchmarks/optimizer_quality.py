@@ -280,10 +280,10 @@ PEER_RUNNERS = {
 
 
 def split_label(label: str) -> tuple[str, dict]:
-    """'hs' or 'hs:pitch_adjust=ghs,hms=30' -> ('hs', {...}); values parsed as JSON if they can."""
+    """'hs' or 'hs:pitch_adjust=ghs+hms=30' -> ('hs', {...}); values parsed as JSON if they can."""
     name, _, rest = label.partition(":")
     params = {}
-    for item in filter(None, rest.split(",")):
+    for item in filter(None, rest.split("+")):
         key, _, value = item.partition("=")
         try:
             params[key] = json.loads(value)
@@ -457,7 +457,7 @@ def main() -> None:
     parser.add_argument("--seeds", type=int, default=5)
     parser.add_argument("--functions", default="", help="names or bbob numbers (default: all)")
     parser.add_argument("--optimizers", default=",".join(METAOPT + HS_PEERS + GA_PEERS),
-                        help="labels; metaopt's take parameters: hs:pitch_adjust=ghs")  # fmt: skip
+                        help="labels; metaopt's take parameters: hs:pitch_adjust=ghs+hmcr=0.9")  # fmt: skip
     parser.add_argument("--jobs", type=int, default=2)
     parser.add_argument("--results", type=Path, default=Path("optimizer_quality.jsonl"))
     parser.add_argument("--peers-env", type=Path, default=PEERS_ENV)
