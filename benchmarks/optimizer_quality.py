@@ -390,8 +390,18 @@ def report(rows: list[dict], optimizers: list[str]) -> str:
     cells = sorted({(k[0], k[1], k[2]) for k in table})
     for suite, dim, budget in cells:
         functions = sorted({k[3] for k in table if k[:3] == (suite, dim, budget)}, key=_order)
-        present = [o for o in optimizers if (suite, dim, budget, functions[0], o) in table]
-        lines += ["", f"## {suite}, D = {dim}, {budget} evaluations", ""]
+        present = [o for o in optimizers if any(k[:3] + (k[4],) == (suite, dim, budget, o)
+                                                for k in table)]  # fmt: skip
+        # Only functions every optimizer has finished on are compared (an unfinished grid).
+        complete = [f for f in functions
+                    if all((suite, dim, budget, f, o) in table for o in present)]  # fmt: skip
+        heading = f"## {suite}, D = {dim}, {budget} evaluations"
+        if len(complete) < len(functions):
+            heading += f" ({len(complete)} of {len(functions)} functions finished by all)"
+        functions = complete
+        if not functions:
+            continue
+        lines += ["", heading, ""]
         lines.append("| function | " + " | ".join(present) + " |")
         lines.append("|---" * (len(present) + 1) + "|")
         rank_sum = dict.fromkeys(present, 0.0)

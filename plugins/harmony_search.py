@@ -32,7 +32,7 @@ memory that has converged on a poor region (a robot that stands still) otherwise
 for the rest of the run; the run keeps its best evaluation whatever the memory forgets.
 
 Defaults (hms 20, hmcr 0.95, ihs with PAR 0.01 -> 0.99 and bandwidth 0.05 -> 1e-5) reach
-about 2e-8 on the 10-D sphere ([-5.12, 5.12]) in 10,000 evaluations, and about 4e-6 on 10-D
+about 2e-8 on the 10-D sphere ([-5.12, 5.12]) in 10,000 evaluations, and about 5e-6 on 10-D
 Rastrigin. Before issue 17 the default was the classic rule with hmcr 0.9 (1.7e-4 and 1.0 on
 those). For ``ihs`` and ``ghs`` the schedules span ``budget``, which the run loop,
 ``metaopt.minimize`` and ``metaopt.create_optimizer`` set to the run's budget.
