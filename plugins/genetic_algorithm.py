@@ -1,11 +1,14 @@
-"""A real-coded generational genetic algorithm with elitism (optimizer ``ga``).
+"""A real-coded genetic algorithm with elitist survival (optimizer ``ga``).
 
 Each generation is ``population`` new candidates bred from the current population by tournament
-selection, crossover (SBX or BLX-α) and per-gene mutation (polynomial or Gaussian), then brought
-inside the bounds by ``Space.repair``. The ``elites`` best members of a population pass unchanged,
-and are not evaluated again, into the next one, where they take the places of the ``elites``
-worst offspring. A generation therefore costs exactly ``population`` evaluations: the paper's
-setting, 10 generations of 200, is ``--set population=200`` with a budget of 2000.
+selection, crossover (SBX or BLX-α) and per-gene mutation (polynomial or Gaussian, ``mutations``
+genes per child on average), then brought inside the bounds by ``Space.repair``. With
+``survival`` plus (the default) the best ``population`` of parents and offspring together form
+the next population; with ``elites`` the offspring do, but for the ``elites`` best parents, which
+pass unchanged and are not evaluated again. A generation costs exactly ``population``
+evaluations: the paper's setting, 10 generations of 200, is ``--set population=200 --set
+survival=elites`` with a budget of 2000. docs/optimizers.md compares the defaults with pymoo's and
+DEAP's GAs.
 
 Candidates may be asked for and told in batches of any size: told results accumulate until a
 whole generation has been evaluated, and asks beyond the current generation are served by breeding
@@ -272,7 +275,7 @@ class GeneticAlgorithm(Optimizer):
 
 
 PARAMS = (
-    Param("population", int, 50, "candidates per generation", low=2),
+    Param("population", int, 100, "candidates per generation", low=2),
     Param("elites", int, 2, "best members passed unchanged to the next generation", low=0),
     Param("tournament", int, 2, "tournament size k of parent selection", low=1),
     Param("crossover", str, "sbx", "crossover operator", choices=("sbx", "blx")),
