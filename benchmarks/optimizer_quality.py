@@ -390,7 +390,7 @@ def report(rows: list[dict], optimizers: list[str]) -> str:
     cells = sorted({(k[0], k[1], k[2]) for k in table})
     for suite, dim, budget in cells:
         functions = sorted({k[3] for k in table if k[:3] == (suite, dim, budget)}, key=_order)
-        present = [o for o in optimizers if any(k[:3] + (k[4],) == (suite, dim, budget, o)
+        present = [o for o in optimizers if any((*k[:3], k[4]) == (suite, dim, budget, o)
                                                 for k in table)]  # fmt: skip
         # Only functions every optimizer has finished on are compared (an unfinished grid).
         complete = [f for f in functions
@@ -467,7 +467,7 @@ def main() -> None:
     parser.add_argument("--seeds", type=int, default=5)
     parser.add_argument("--functions", default="", help="names or bbob numbers (default: all)")
     parser.add_argument("--optimizers", default=",".join(METAOPT + HS_PEERS + GA_PEERS),
-                        help="labels; metaopt's take parameters: hs:pitch_adjust=ghs+hmcr=0.9")  # fmt: skip
+                        help="labels; metaopt's take parameters: hs:hmcr=0.9+hms=30")  # fmt: skip
     parser.add_argument("--jobs", type=int, default=2)
     parser.add_argument("--results", type=Path, default=Path("optimizer_quality.jsonl"))
     parser.add_argument("--peers-env", type=Path, default=PEERS_ENV)
