@@ -1,8 +1,9 @@
 """metaopt: metaheuristic optimization with plugins."""
 
+from metaopt.api import History, Result, create_optimizer, maximize, minimize
 from metaopt.errors import ConfigError, EvaluationError, MetaoptError, StoreError
 from metaopt.hookspecs import hookimpl
-from metaopt.optimizer import Optimizer, OptimizerInfo, restore_rng, rng_state
+from metaopt.optimizer import Optimizer, OptimizerInfo, budget_param, restore_rng, rng_state
 from metaopt.params import Param
 from metaopt.problem import Evaluation, Problem, ProblemInfo, Sense
 from metaopt.space import Space, Variable
@@ -13,18 +14,24 @@ __all__ = [
     "ConfigError",
     "Evaluation",
     "EvaluationError",
+    "History",
     "MetaoptError",
     "Optimizer",
     "OptimizerInfo",
     "Param",
     "Problem",
     "ProblemInfo",
+    "Result",
     "Sense",
     "Space",
     "StoreError",
     "Variable",
     "__version__",
+    "budget_param",
+    "create_optimizer",
     "hookimpl",
+    "maximize",
+    "minimize",
     "restore_rng",
     "rng_state",
 ]

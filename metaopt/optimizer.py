@@ -65,12 +65,31 @@ def restore_rng(rng: np.random.Generator, state: dict[str, Any]) -> None:
     rng.bit_generator.state = state
 
 
+def budget_param(default: int = 10000) -> Param:
+    """The ``budget`` parameter every optimizer declares: how many evaluations it will be told.
+
+    ``metaopt run`` and ``metaopt.create_optimizer``/``minimize`` set it to the run's budget
+    unless the user gives one, so an optimizer with a schedule (IHS's bandwidth, the GA's
+    mutation step) spans the run; an optimizer without one accepts it and may ignore it.
+    """
+    return Param(
+        "budget",
+        int,
+        default,
+        "evaluations it will be told, initial ones included: schedules span them (metaopt run "
+        "sets the run's budget unless given; past it they stay at their end)",
+        low=1,
+    )
+
+
 @dataclass(frozen=True)
 class OptimizerInfo:
     """How a plugin announces an optimizer: its name, what it is, its parameters, a factory.
 
     ``factory(space, seed, **params)`` receives every declared parameter (defaults filled in,
-    validated) and returns a ready Optimizer.
+    validated) and returns a ready Optimizer. Every optimizer declares ``budget``
+    (``budget_param()``), so generic code can tell any optimizer how long its run is; the
+    conformance kit (metaopt.testing) checks it.
     """
 
     name: str

@@ -19,6 +19,8 @@ DPI = 100
 #: The zoomed views scale their y axis to the curves from this fraction of the evaluations on:
 #: the first, random candidates (robots that all fall, say) would flatten everything after.
 FOCUS_FROM = 0.05
+#: A minimized fitness whose positive values span more powers of ten than this gets a log axis.
+DECADES = 2
 
 
 def fitness_label(maximize: bool) -> str:
@@ -26,9 +28,13 @@ def fitness_label(maximize: bool) -> str:
     return f"fitness ({'higher' if maximize else 'lower'} is better)"
 
 
-def convergence_figure(curves: Convergence, title: str) -> Figure:
+def convergence_figure(curves: Convergence, title: str, optimum: float | None = None) -> Figure:
     """Best so far and the trailing mean (failed evaluations excluded) against evaluations;
-    below, the best so far alone, zoomed past the first random candidates."""
+    below, the best so far alone, zoomed past the first random candidates.
+
+    A minimized fitness that spans decades is drawn on a log axis; where the problem's optimum
+    is known (benchmark functions), the lower panel shows best so far − optimum, on a log axis.
+    """
     figure = Figure(figsize=(6.4, 6.4), layout="constrained")
     ax, zoom = figure.subplots(2, 1, sharex=True, height_ratios=(3, 2))
     ax.plot(curves.evaluations, curves.mean, color="tab:gray", lw=0.9,
@@ -41,10 +47,21 @@ def convergence_figure(curves: Convergence, title: str) -> Figure:
     ax.set_title(f"{title}{failed}", fontsize="medium")
     ax.legend(fontsize="small")
     ax.grid(alpha=0.3)
-    zoom.plot(curves.evaluations, curves.best, color="tab:red", lw=1.6)
-    _focus(zoom, [curves.best])
+    if not curves.maximize and _spans_decades([curves.best, curves.mean]):
+        ax.set_yscale("log")
+    if not curves.maximize and optimum is not None:
+        gap = curves.best - optimum
+        zoom.plot(curves.evaluations, np.where(gap > 0, gap, np.nan), color="tab:red", lw=1.6)
+        zoom.set_yscale("log")
+        zoom.set_ylabel(f"best so far − optimum ({optimum:g})")
+    else:
+        zoom.plot(curves.evaluations, curves.best, color="tab:red", lw=1.6)
+        if not curves.maximize and _spans_decades([curves.best]):
+            zoom.set_yscale("log")
+        else:
+            _focus(zoom, [curves.best])
+        zoom.set_ylabel("best so far (zoomed)")
     zoom.set_xlabel("evaluations")
-    zoom.set_ylabel("best so far (zoomed)")
     zoom.grid(alpha=0.3)
     return figure
 
@@ -58,17 +75,30 @@ def bands_figure(bands: dict[str, Band], maximize: bool, title: str) -> Figure:
                           label=f"{label} ({band.runs} runs)")  # fmt: skip
         ax.fill_between(band.evaluations, band.lower, band.upper, color=line.get_color(),
                         alpha=0.2, lw=0)  # fmt: skip
-    _focus(ax, [curve for band in bands.values() for curve in (band.lower, band.upper)])
+    curves = [curve for band in bands.values() for curve in (band.lower, band.upper)]
+    logarithmic = not maximize and _spans_decades(curves)
+    if logarithmic:
+        ax.set_yscale("log")
+    else:
+        _focus(ax, curves)
     ax.set_xlabel("evaluations")
     ax.set_ylabel(f"best so far, {fitness_label(maximize)}")
+    scale = "log y axis" if logarithmic else f"y axis: from {FOCUS_FROM:.0%} of the run on"
     ax.set_title(
-        f"{title}\nmedian over runs, band: 25th to 75th percentile "
-        f"(y axis: from {FOCUS_FROM:.0%} of the run on)",
+        f"{title}\nmedian over runs, band: 25th to 75th percentile ({scale})",
         fontsize="medium",
     )
     ax.legend(fontsize="small")
     ax.grid(alpha=0.3)
     return figure
+
+
+def _spans_decades(curves: list[np.ndarray]) -> bool:
+    """The curves' finite values are all positive and span more than DECADES powers of ten:
+    on a linear axis everything past the first evaluations would look flat."""
+    values = np.concatenate([np.asarray(curve, dtype=float) for curve in curves])
+    values = values[np.isfinite(values)]
+    return bool(values.size and values.min() > 0 and values.max() / values.min() > 10**DECADES)
 
 
 def _focus(ax: Axes, curves: list[np.ndarray]) -> None:

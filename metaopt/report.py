@@ -33,13 +33,21 @@ def run_figures(store: RunStore, run_id: int | str, plugins: Registry) -> Figure
     """Convergence of run ``run_id``, plus its problem's figures of the best candidate."""
     run = store.run(run_id)
     title = f"Run {run.id}: {run.optimizer} on {run.problem}, seed {run.seed}"
-    result = Figures({"convergence": convergence_figure(run_convergence(store, run), title)})
-    best = store.best_candidate(run)
-    if best is None:
-        result.note = f"run {run.id} has no successful evaluation: no figures of its best"
-        return result
+    curves = run_convergence(store, run)
+    if run.problem not in plugins.problems:
+        return Figures(
+            {"convergence": convergence_figure(curves, title)},
+            f"problem {run.problem!r} is no installed plugin (a Python function run by "
+            "metaopt.minimize): only the convergence figure is drawn",
+        )
     info, params = replay_params(run, plugins, {})
     problem = info.factory(**params)
+    result = Figures({"convergence": convergence_figure(curves, title, problem.optimum)})
+    best = store.best_candidate(run)
+    if best is None:
+        problem.close()
+        result.note = f"run {run.id} has no successful evaluation: no figures of its best"
+        return result
     try:
         result.figures.update(problem.figures(best.x, best.seed))
     except NotImplementedError as missing:

@@ -73,6 +73,8 @@ class RunSettings:
     #: every candidate's resample evaluations use the same resample seeds (common random
     #: numbers, docs/scaling.md), instead of seeds of their own
     common_seeds: bool = False
+    #: stop once a fitness this good is found: at or below it (minimize), at or above (maximize)
+    target: float | None = None
 
     def check(self, budget: int) -> None:
         """ConfigError naming the bad setting."""
@@ -91,6 +93,8 @@ class RunSettings:
             )
         if self.time_limit is not None and not self.time_limit > 0:
             raise ConfigError(f"time limit must be positive seconds, got {self.time_limit}")
+        if self.target is not None and not math.isfinite(self.target):
+            raise ConfigError(f"target must be a finite fitness, got {self.target}")
 
 
 @dataclass
@@ -276,6 +280,9 @@ class _Session:
         self.stored = self.failed = 0
         self.first_error: str | None = None
         self.best_score = math.inf
+        target = self.settings.target
+        #: the optimizer's (minimizing) score at which the run stops
+        self.target_score = -math.inf if target is None else self.sign * target
         self.best: tuple[float, np.ndarray, dict[str, float]] | None = None
         self.reusable: dict[int, EvaluationRecord] = {}
         self.last_checkpoint = time.perf_counter()
@@ -341,7 +348,7 @@ class _Session:
     def _run_sync(self, executor: Executor, progress: Progress | None) -> None:
         batch_size = self.settings.batch or self.optimizer.batch_size
         next_index = self.told_below
-        while next_index < self.total:
+        while next_index < self.total and not self.target_reached:
             count = min(batch_size, (self.total - next_index) // self.resample)
             candidates = [
                 _Candidate(next_index // self.resample + i, x, [None] * self.resample)
@@ -365,8 +372,12 @@ class _Session:
                 self._tell_one(candidate, progress)
             else:
                 in_flight.update(self._submit(executor, [candidate]))
-        while in_flight or next_index < self.total:
-            while len(in_flight) < executor.capacity and next_index < self.total:
+        while in_flight or (next_index < self.total and not self.target_reached):
+            while (
+                len(in_flight) < executor.capacity
+                and next_index < self.total
+                and not self.target_reached
+            ):
                 x = self.optimizer.ask(1)[0]
                 candidate = _Candidate(next_index // self.resample, x, [None] * self.resample)
                 in_flight.update(self._submit(executor, [candidate]))
@@ -377,6 +388,11 @@ class _Session:
                 self._record(candidate, future.result())
                 if candidate.complete:
                     self._tell_one(candidate, progress)
+
+    @property
+    def target_reached(self) -> bool:
+        """A fitness at the target or better has been found (never without a target)."""
+        return self.best_score <= self.target_score
 
     def _tell_one(self, candidate: _Candidate, progress: Progress | None) -> None:
         self.optimizer.tell(candidate.x[None, :], np.array([self._score(candidate)]))

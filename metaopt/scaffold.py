@@ -171,6 +171,7 @@ from metaopt import (
     OptimizerInfo,
     Param,
     Space,
+    budget_param,
     hookimpl,
     restore_rng,
     rng_state,
@@ -185,7 +186,10 @@ MIN_STEP, MAX_STEP = 1e-12, 1.0
 class $class_name(Optimizer):
     """A (1+λ) evolution strategy over a box; minimizes."""
 
-    def __init__(self, space: Space, seed: int, *, offspring: int, step: float) -> None:
+    def __init__(
+        self, space: Space, seed: int, *, offspring: int, step: float, budget: int
+    ) -> None:
+        # budget: the evaluations it will be told; the 1/5th rule needs no schedule over them.
         super().__init__(space, seed)  # gives self.space and self.rng, seeded by seed
         self.offspring = offspring
         self.step = step
@@ -248,6 +252,7 @@ def metaopt_optimizers() -> list[OptimizerInfo]:
                     high=1.0,
                     low_open=True,
                 ),
+                budget_param(),  # every optimizer declares it; metaopt sets the run's
             ),
             description=__doc__ or "",
         )
@@ -329,7 +334,7 @@ def test_conforms(check):
 
 def test_finds_the_minimum_of_a_sphere():
     space = Space.from_bounds([-5.0] * 5, [5.0] * 5)
-    optimizer = $class_name(space, seed=1, offspring=10, step=0.1)
+    optimizer = $class_name(space, seed=1, offspring=10, step=0.1, budget=4000)
     for _ in range(400):
         candidates = optimizer.ask(optimizer.batch_size)
         optimizer.tell(candidates, (candidates**2).sum(axis=1))

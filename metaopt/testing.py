@@ -27,7 +27,8 @@ metaopt.engine_agreement)::
 
 A breach raises ConformanceError (an AssertionError) saying what was breached and how to fix it.
 The kit holds a plugin to what the run loop and the run store rely on, and to a little more
-that a sound plugin always satisfies: a problem must evaluate every point sampled uniformly in
+that a sound plugin always satisfies: an optimizer declares ``budget`` (metaopt.budget_param()),
+which generic code gives every optimizer; a problem must evaluate every point sampled uniformly in
 its space to a finite fitness, and different seeds must make an optimizer propose different
 candidates. A state must survive ``json.dumps`` with default settings, as the run store writes it
 (so inf and nan are allowed), and a fresh optimizer loading it must continue bit for bit.
@@ -117,6 +118,7 @@ def optimizer_checks(
     harness = _OptimizerHarness(info, dict(params or {}))
     return {
         "declared_params": partial(_check_declared_params, info.params, info.name),
+        "declares_budget": partial(_check_declares_budget, info.params),
         "factory_keywords": harness.check_factory_keywords,
         "ask_tell_shapes": harness.check_ask_tell_shapes,
         "tell_inf": harness.check_tell_inf,
@@ -216,6 +218,16 @@ def _check_declared_params(params: Sequence[Param], owner: str) -> None:
                 f"parameter {p.name!r} has default {p.default!r}, which its own declaration "
                 f"rejects (expected {p.accepted()}); change the default or the declared range"
             ) from None
+
+
+def _check_declares_budget(params: Sequence[Param]) -> None:
+    """An optimizer declares the int parameter ``budget`` that generic code gives every one."""
+    if not any(p.name == "budget" and p.type is int for p in params):
+        raise ConformanceError(
+            "it declares no int parameter 'budget'; add metaopt.budget_param() to its params "
+            "(metaopt run, metaopt.minimize and create_optimizer set it to the evaluations the "
+            "optimizer will be told; one without a schedule accepts it and may ignore it)"
+        )
 
 
 def _resolve(params: Sequence[Param], given: Mapping[str, Any], owner: str) -> dict[str, Any]:

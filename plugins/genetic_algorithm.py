@@ -1,11 +1,14 @@
-"""A real-coded generational genetic algorithm with elitism (optimizer ``ga``).
+"""A real-coded genetic algorithm with elitist survival (optimizer ``ga``).
 
 Each generation is ``population`` new candidates bred from the current population by tournament
-selection, crossover (SBX or BLX-α) and per-gene mutation (polynomial or Gaussian), then brought
-inside the bounds by ``Space.repair``. The ``elites`` best members of a population pass unchanged,
-and are not evaluated again, into the next one, where they take the places of the ``elites``
-worst offspring. A generation therefore costs exactly ``population`` evaluations: the paper's
-setting, 10 generations of 200, is ``--set population=200`` with a budget of 2000.
+selection, crossover (SBX or BLX-α) and per-gene mutation (polynomial or Gaussian, ``mutations``
+genes per child on average), then brought inside the bounds by ``Space.repair``. With
+``survival`` plus (the default) the best ``population`` of parents and offspring together form
+the next population; with ``elites`` the offspring do, but for the ``elites`` best parents, which
+pass unchanged and are not evaluated again. A generation costs exactly ``population``
+evaluations: the paper's setting, 10 generations of 200, is ``--set population=200 --set
+survival=elites`` with a budget of 2000. docs/optimizers.md compares the defaults with pymoo's and
+DEAP's GAs.
 
 Candidates may be asked for and told in batches of any size: told results accumulate until a
 whole generation has been evaluated, and asks beyond the current generation are served by breeding
@@ -26,6 +29,7 @@ from metaopt import (
     OptimizerInfo,
     Param,
     Space,
+    budget_param,
     hookimpl,
     restore_rng,
     rng_state,
@@ -33,7 +37,6 @@ from metaopt import (
 from metaopt.space import repair_param
 
 Crossover = Callable[[np.ndarray, np.ndarray, np.random.Generator], tuple[np.ndarray, np.ndarray]]
-Mutation = Callable[[np.ndarray, np.ndarray, np.random.Generator], np.ndarray]
 
 
 def tournament_winners(fitness: np.ndarray, n: int, k: int, rng: np.random.Generator) -> np.ndarray:
@@ -54,15 +57,20 @@ def tournament_winners(fitness: np.ndarray, n: int, k: int, rng: np.random.Gener
 def sbx(
     first: np.ndarray, second: np.ndarray, rng: np.random.Generator, eta: float
 ) -> tuple[np.ndarray, np.ndarray]:
-    """Simulated binary crossover (Deb & Agrawal 1995) with distribution index eta, per gene.
-
-    Children are symmetric around the parents' mean; a larger eta keeps them closer to the
-    parents. Children may leave the bounds; the caller repairs them.
+    """Simulated binary crossover (Deb & Agrawal 1995) with distribution index eta, as Deb's own
+    implementation does it: each gene is crossed with probability 1/2 (else copied), and the
+    two children's genes are swapped with probability 1/2, so genes also mix as in a uniform
+    crossover. Crossed genes are symmetric around the parents' mean, nearer the parents for a
+    larger eta. Children may leave the bounds; the caller repairs them.
     """
     u = rng.random(first.shape)
     beta = np.where(u <= 0.5, 2.0 * u, 0.5 / (1.0 - u)) ** (1.0 / (eta + 1.0))
+    crossed = rng.random(first.shape) < 0.5
     mean, half_spread = 0.5 * (first + second), 0.5 * beta * (second - first)
-    return mean - half_spread, mean + half_spread
+    low = np.where(crossed, mean - half_spread, first)
+    high = np.where(crossed, mean + half_spread, second)
+    swapped = rng.random(first.shape) < 0.5
+    return np.where(swapped, high, low), np.where(swapped, low, high)
 
 
 def blx(
@@ -117,9 +125,12 @@ class GeneticAlgorithm(Optimizer):
         eta_c: float,
         blx_alpha: float,
         mutation: str,
-        mutation_rate: float,
+        mutations: float,
         eta_m: float,
         sigma: float,
+        sigma_min: float,
+        survival: str,
+        budget: int,
         repair: str,
     ) -> None:
         super().__init__(space, seed)
@@ -132,18 +143,20 @@ class GeneticAlgorithm(Optimizer):
                 f"ga parameter 'tournament' = {tournament} cannot exceed "
                 f"'population' = {population}"
             )
+        if sigma_min > sigma:
+            raise ConfigError(f"ga parameter 'sigma_min' = {sigma_min} must not exceed 'sigma'")
         self.population_size = population
         self.elites = elites
         self.tournament_size = tournament
         self.crossover_rate = crossover_rate
         self.repair_method = repair
+        self.survival = survival
+        self.budget = budget
+        self.mutation_rate = min(1.0, mutations / space.dim)
+        self.mutation_kind = mutation
+        self.eta_m, self.sigma, self.sigma_min = eta_m, sigma, sigma_min
         self.crossover: Crossover = (
             partial(sbx, eta=eta_c) if crossover == "sbx" else partial(blx, alpha=blx_alpha)
-        )
-        self.mutation: Mutation = (
-            partial(polynomial_mutation, rate=mutation_rate, eta=eta_m)
-            if mutation == "polynomial"
-            else partial(gaussian_mutation, rate=mutation_rate, sigma=sigma)
         )
         empty = np.empty((0, space.dim))
         #: The current population and its fitness; None until the first generation is told.
@@ -155,6 +168,8 @@ class GeneticAlgorithm(Optimizer):
         self.offspring, self.offspring_fitness = empty, np.empty(0)
         #: Generations fully evaluated (the random initial population is the first).
         self.generations = 0
+        #: Evaluations told so far (the gaussian step shrinks over the budget).
+        self.told = 0
 
     def budget_warning(self, candidates: int) -> str | None:
         """A budget within the random first generation breeds nothing."""
@@ -181,6 +196,7 @@ class GeneticAlgorithm(Optimizer):
     def tell(self, candidates: np.ndarray, fitnesses: np.ndarray) -> None:
         """Collect evaluated offspring; each full generation's worth replaces the population."""
         fitnesses = np.asarray(fitnesses, dtype=float)
+        self.told += len(fitnesses)
         self.offspring = np.concatenate([self.offspring, np.asarray(candidates, dtype=float)])
         self.offspring_fitness = np.concatenate(
             [self.offspring_fitness, np.where(np.isnan(fitnesses), np.inf, fitnesses)]
@@ -207,13 +223,28 @@ class GeneticAlgorithm(Optimizer):
         children = np.concatenate(
             [np.where(crossed, child_a, first), np.where(crossed, child_b, second)]
         )[:n]
-        mutated = self.mutation(children, self.space.width, self.rng)
+        width, rate = self.space.width, self.mutation_rate
+        if self.mutation_kind == "polynomial":
+            mutated = polynomial_mutation(children, width, self.rng, rate, self.eta_m)
+        else:
+            mutated = gaussian_mutation(children, width, self.rng, rate, self.sigma_at(self.told))
         return self.space.repair(mutated, self.repair_method)
+
+    def sigma_at(self, told: int) -> float:
+        """Gaussian step (fraction of the range) after ``told`` evaluations: from sigma at the
+        start to sigma_min at the budget, exponentially (wide search first, fine steps last)."""
+        progress = min(told / self.budget, 1.0)
+        return self.sigma * (self.sigma_min / self.sigma) ** progress
 
     def _replace(self, offspring: np.ndarray, fitness: np.ndarray) -> None:
         """Make a new population: the old one's elites plus the best of the offspring."""
         if self.members is None:
             self.members, self.fitness = offspring, fitness
+        elif self.survival == "plus":
+            merged = np.concatenate([self.members, offspring])
+            merged_fitness = np.concatenate([self.fitness, fitness])
+            kept = np.argsort(merged_fitness, kind="stable")[: self.population_size]
+            self.members, self.fitness = merged[kept], merged_fitness[kept]
         else:
             elite = np.argsort(self.fitness, kind="stable")[: self.elites]
             kept = np.argsort(fitness, kind="stable")[: self.population_size - self.elites]
@@ -233,6 +264,7 @@ class GeneticAlgorithm(Optimizer):
             "offspring": self.offspring.tolist(),
             "offspring_fitness": self.offspring_fitness.tolist(),
             "generations": self.generations,
+            "told": self.told,
         }
 
     def load_state_dict(self, state: dict[str, Any]) -> None:
@@ -248,10 +280,12 @@ class GeneticAlgorithm(Optimizer):
         self.offspring = np.array(state["offspring"], dtype=float).reshape(-1, dim)
         self.offspring_fitness = np.array(state["offspring_fitness"], dtype=float)
         self.generations = int(state["generations"])
+        # States saved before the told count existed: every generation was fully told.
+        self.told = int(state.get("told", self.generations * self.population_size))
 
 
 PARAMS = (
-    Param("population", int, 50, "candidates per generation", low=2),
+    Param("population", int, 100, "candidates per generation", low=2),
     Param("elites", int, 2, "best members passed unchanged to the next generation", low=0),
     Param("tournament", int, 2, "tournament size k of parent selection", low=1),
     Param("crossover", str, "sbx", "crossover operator", choices=("sbx", "blx")),
@@ -260,22 +294,39 @@ PARAMS = (
     Param("blx_alpha", float, 0.5, "blx: widening of the parents' interval on each side", low=0),
     Param("mutation", str, "polynomial", "mutation operator", choices=("polynomial", "gaussian")),
     Param(
-        "mutation_rate",
+        "mutations",
         float,
-        0.1,
-        "probability that each gene mutates (1/dim is customary: 0.1 for 10 variables)",
+        1.0,
+        "genes mutated per child on average: each gene mutates with probability "
+        "mutations / dim (at most 1); 1 is the customary rate 1/dim, 0 turns mutation off",
         low=0,
-        high=1,
     ),
     Param("eta_m", float, 20.0, "polynomial: distribution index (larger: smaller steps)", low=0),
     Param(
         "sigma",
         float,
         0.1,
-        "gaussian: step deviation as a fraction of the range",
+        "gaussian: step deviation at the start, as a fraction of the range",
         low=0,
         low_open=True,
     ),
+    Param(
+        "sigma_min",
+        float,
+        0.001,
+        "gaussian: step deviation at the budget's end (it shrinks exponentially from sigma)",
+        low=0,
+        low_open=True,
+    ),
+    Param(
+        "survival",
+        str,
+        "plus",
+        "plus: the best of parents and offspring form the next population; elites: the "
+        "offspring do, but for the elites best parents",
+        choices=("plus", "elites"),
+    ),
+    budget_param(),
     repair_param("how offspring outside the bounds are brought back: clip or reflect"),
 )
 

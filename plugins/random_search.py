@@ -6,7 +6,16 @@ from typing import Any
 
 import numpy as np
 
-from metaopt import Optimizer, OptimizerInfo, Param, Space, hookimpl, restore_rng, rng_state
+from metaopt import (
+    Optimizer,
+    OptimizerInfo,
+    Param,
+    Space,
+    budget_param,
+    hookimpl,
+    restore_rng,
+    rng_state,
+)
 
 
 class RandomSearch(Optimizer):
@@ -15,7 +24,8 @@ class RandomSearch(Optimizer):
     # Results change nothing, so they may come back one at a time and in any order.
     steady_state = True
 
-    def __init__(self, space: Space, seed: int, *, batch_size: int) -> None:
+    def __init__(self, space: Space, seed: int, *, batch_size: int, budget: int) -> None:
+        # Sampling has no schedule: the budget every optimizer is given changes nothing here.
         super().__init__(space, seed)
         self._batch_size = batch_size
 
@@ -48,7 +58,10 @@ def metaopt_optimizers() -> list[OptimizerInfo]:
             name="random",
             summary="Uniform random sampling inside the bounds (baseline)",
             factory=RandomSearch,
-            params=(Param("batch_size", int, 100, "candidates asked for at once", low=1),),
+            params=(
+                Param("batch_size", int, 100, "candidates asked for at once", low=1),
+                budget_param(),
+            ),
             description=__doc__,
         )
     ]

@@ -88,3 +88,16 @@ def test_replay_reproduces_the_stored_best_and_rejects_foreign_settings(tmp_path
     wrong = metaopt_cli("replay", "1", "--backend", "pybullet", cwd=tmp_path, env=BASIC)
     assert wrong.returncode == 2
     assert "problem 'rastrigin' has no parameter 'backend'" in wrong.stderr
+
+
+def test_run_stops_at_the_target_and_refuses_a_non_finite_one(tmp_path):
+    done = metaopt_cli(
+        "run", "-o", "hs", "-p", "sphere", "--budget", "20000", "--seed", "1", "--target", "0.01",
+        cwd=tmp_path, env=BASIC,
+    )  # fmt: skip
+    assert done.returncode == 0, done.stderr
+    stored = metaopt_cli("export", "1", "--format", "json", cwd=tmp_path, env=BASIC)
+    fitness = [e["fitness"] for e in json.loads(stored.stdout)["evaluations"]]
+    assert len(fitness) < 20000 and fitness[-1] <= 0.01 < min(fitness[:-1])
+    bad = metaopt_cli("run", "-o", "hs", "-p", "sphere", "--target", "inf", cwd=tmp_path, env=BASIC)
+    assert bad.returncode == 2 and "target must be a finite fitness" in bad.stderr

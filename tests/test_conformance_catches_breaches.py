@@ -23,6 +23,7 @@ OPTIMIZER_BREACHES = [
     (broken.MAXIMIZER, "minimizes", ["no better than the median", "must minimize"]),
     (broken.RENAMED_PARAM, "factory_keywords", ["no keyword argument", "'step'"]),
     (broken.BAD_DEFAULT, "declared_params", ["default 2.0", "a float in [0, 1]"]),
+    (broken.NO_BUDGET, "declares_budget", ["no int parameter 'budget'", "budget_param()"]),
 ]
 
 PROBLEM_BREACHES = [
@@ -61,7 +62,7 @@ def test_a_problem_breach_is_caught_by_its_check(info, check, phrases):
 
 
 def test_check_optimizer_lists_every_breached_check():
-    with pytest.raises(ConformanceError, match=r"'GlobalRandom' breaks 2 of 7 checks") as caught:
+    with pytest.raises(ConformanceError, match=r"'GlobalRandom' breaks 2 of 8 checks") as caught:
         check_optimizer(broken.GLOBAL_RANDOM)
     assert "- deterministic:" in str(caught.value)
     assert "- state_round_trip:" in str(caught.value)

@@ -73,7 +73,8 @@ def read_blocks(markdown: str) -> list[Block]:
 class Workspace:
     """An empty folder where the tutorial's files are written and its commands run."""
 
-    def __init__(self, root: Path) -> None:
+    def __init__(self, root: Path, tutorial: Path = TUTORIAL) -> None:
+        self.tutorial = tutorial
         self.root = root / "work"
         self.site = root / "site"
         shims = root / "bin"
@@ -109,7 +110,7 @@ class Workspace:
         commands = {"bash": ["bash", "-euo", "pipefail", "-c"], "python": [sys.executable, "-c"]}
         if block.language not in commands:
             pytest.fail(
-                f"{TUTORIAL.name}:{block.line}: a {block.language or 'plain'} block with no "
+                f"{self.tutorial.name}:{block.line}: a {block.language or 'plain'} block with no "
                 "'<!-- file: PATH -->' mark cannot be executed; mark it or make it bash/python"
             )
         done = subprocess.run(
@@ -121,7 +122,9 @@ class Workspace:
             timeout=300,
         )
         output = done.stdout + done.stderr
-        assert done.returncode == 0, f"{TUTORIAL.name}:{block.line} failed:\n{block.body}\n{output}"
+        assert done.returncode == 0, (
+            f"{self.tutorial.name}:{block.line} failed:\n{block.body}\n{output}"
+        )
         self.ran.append((block, output))
 
     def output_of(self, command: str) -> str:

@@ -47,7 +47,7 @@ def test_registered_as_ga_through_its_entry_point(monkeypatch):
 
 
 def test_elites_survive_and_best_so_far_never_lost():
-    optimizer = build(SPHERE_10, 3, population=20, elites=3, mutation_rate=0.5)
+    optimizer = build(SPHERE_10, 3, population=20, elites=3, mutations=5.0, survival="elites")
     best_so_far = np.inf
     for _ in range(30):
         elites = (
@@ -62,9 +62,48 @@ def test_elites_survive_and_best_so_far_never_lost():
             assert (optimizer.members == elite).all(axis=1).any()
 
 
+def test_plus_survival_keeps_the_best_of_parents_and_offspring():
+    optimizer = build(SPHERE_10, 4, population=20)  # survival "plus", the default
+    told_x, told_f = np.empty((0, 10)), np.empty(0)
+    for _ in range(10):
+        x = optimizer.ask(20)
+        fitness = sphere(x)
+        optimizer.tell(x, fitness)
+        told_x, told_f = np.concatenate([told_x, x]), np.concatenate([told_f, fitness])
+        # The population is the 20 best candidates told so far, whichever generation bred them.
+        assert np.array_equal(np.sort(optimizer.fitness), np.sort(told_f)[:20])
+
+
+def test_mutations_set_the_expected_share_of_mutated_genes():
+    assert build(SPHERE_10, 0).mutation_rate == pytest.approx(0.1)  # one gene of 10
+    assert build(Space.from_bounds([0.0] * 40, [1.0] * 40), 0).mutation_rate == 1 / 40
+    assert build(SPHERE_10, 0, mutations=30.0).mutation_rate == 1.0
+
+
+def test_the_gaussian_step_shrinks_from_sigma_to_sigma_min_over_the_budget():
+    optimizer = build(SPHERE_10, 0, mutation="gaussian", sigma=0.1, sigma_min=1e-3, budget=1000)
+    assert optimizer.sigma_at(0) == pytest.approx(0.1)
+    assert optimizer.sigma_at(500) == pytest.approx(1e-2)
+    assert optimizer.sigma_at(1000) == optimizer.sigma_at(5000) == pytest.approx(1e-3)
+    with pytest.raises(ConfigError, match="sigma_min"):
+        build(SPHERE_10, 0, sigma=0.01, sigma_min=0.1)
+
+
+def test_sbx_keeps_each_genes_mean_and_mixes_the_parents_genes():
+    rng = np.random.default_rng(0)
+    first, second = rng.normal(size=(10_000, 5)), rng.normal(size=(10_000, 5))
+    child_a, child_b = ga.sbx(first, second, rng, eta=15.0)
+    np.testing.assert_allclose(child_a + child_b, first + second)
+    # About half the genes are copied (a quarter straight, a quarter swapped), half crossed.
+    copied = (child_a == first) | (child_a == second)
+    assert 0.45 < copied.mean() < 0.55
+    swapped = child_a == second
+    assert 0.2 < swapped.mean() < 0.3
+
+
 def test_without_elites_the_best_can_be_lost():
     """The elitism test above is not vacuous: with no elites the population's best regresses."""
-    optimizer = build(SPHERE_10, 3, population=20, elites=0, mutation_rate=0.5)
+    optimizer = build(SPHERE_10, 3, population=20, elites=0, mutations=5.0, survival="elites")
     best_so_far, regressed = np.inf, False
     for _ in range(30):
         x = optimizer.ask(20)
@@ -88,7 +127,7 @@ def test_offspring_stay_inside_narrow_asymmetric_bounds(crossover, mutation, rep
         crossover=crossover,
         mutation=mutation,
         repair=repair,
-        mutation_rate=1.0,
+        mutations=4.0,
         eta_c=0.0,
         eta_m=0.0,
         blx_alpha=3.0,
@@ -120,9 +159,11 @@ def test_sbx_children_are_symmetric_around_parents_with_the_sbx_spread():
     first, second = rng.normal(size=(10_000, 5)), rng.normal(size=(10_000, 5))
     child_a, child_b = ga.sbx(first, second, rng, eta=2.0)
     np.testing.assert_allclose(child_a + child_b, first + second, atol=1e-12)
-    # Spread factor beta = |children gap| / |parents gap|: P(beta <= b) = b^(eta+1) / 2 for
-    # b <= 1 and 1 - b^-(eta+1) / 2 above (Deb & Agrawal 1995).
-    beta = np.abs(child_b - child_a) / np.abs(second - first)
+    # Spread factor beta = |children gap| / |parents gap| of the crossed genes (the others are
+    # copies): P(beta <= b) = b^(eta+1) / 2 for b <= 1 and 1 - b^-(eta+1) / 2 above (Deb &
+    # Agrawal 1995).
+    crossed = (child_a != first) & (child_a != second)
+    beta = (np.abs(child_b - child_a) / np.abs(second - first))[crossed]
     for b, share in [(0.5, 0.5**3 / 2), (1.0, 0.5), (2.0, 1 - 2.0**-3 / 2)]:
         assert (beta <= b).mean() == pytest.approx(share, abs=0.01)
 
@@ -162,7 +203,7 @@ def test_polynomial_mutation_moves_at_most_one_range_width():
 
 def test_ga_solves_the_10d_sphere_and_beats_random_search_by_orders_of_magnitude():
     (random_info,) = random_search.metaopt_optimizers()
-    random_best, _ = run(random_info.factory(SPHERE_10, 0, batch_size=100), 20_000)
+    random_best, _ = run(random_info.factory(SPHERE_10, 0, batch_size=100, budget=20_000), 20_000)
     ga_best, _ = run(build(SPHERE_10, 0), 20_000)
     # Measured over 40 seeds: GA worst 1.7e-5 (median 5e-6); random search ~10.
     assert ga_best < 1e-3
@@ -225,7 +266,7 @@ def test_any_ask_and_tell_sizes_complete_generations():
 
 
 def test_asks_after_a_completed_generation_come_from_the_new_population():
-    optimizer = build(SPHERE_10, 0, population=10, crossover_rate=0.0, mutation_rate=0.0)
+    optimizer = build(SPHERE_10, 0, population=10, crossover_rate=0.0, mutations=0.0)
     x = np.concatenate([optimizer.ask(4), optimizer.ask(10)])  # spills into a second batch
     optimizer.tell(x, sphere(x))
     assert optimizer.generations == 1

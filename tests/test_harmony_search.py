@@ -82,7 +82,7 @@ def test_inverted_schedule_bounds_rejected():
 
 
 def test_harmonies_come_from_the_memory_as_it_is_when_asked():
-    optimizer = build(hms=2, hmcr=1.0, par=0.0)
+    optimizer = build(hms=2, hmcr=1.0, par=0.0, pitch_adjust="bandwidth")
     fill(optimizer, np.array([[1.0] * 10, [2.0] * 10]), np.array([1.0, 2.0]))
     for _ in range(40):  # harmonies are built ahead in batches: some are waiting now
         assert np.isin(optimizer.ask(1), [1.0, 2.0]).all()
@@ -162,7 +162,7 @@ def test_nan_while_filling_counts_as_the_worst():
 
 def test_bandwidth_moves_within_bandwidth_times_range():
     space = Space.from_bounds([0.0, -50.0], [1.0, 50.0])
-    optimizer = build(space, hms=3, hmcr=1.0, par=1.0, bandwidth=0.05)
+    optimizer = build(space, hms=3, hmcr=1.0, par=1.0, bandwidth=0.05, pitch_adjust="bandwidth")
     memory = space.lower + np.array([[0.25], [0.5], [0.75]]) * space.width
     fill(optimizer, memory)
     steps = optimizer.ask(4000)[:, None, :] - memory[None]

@@ -11,6 +11,7 @@ from matplotlib.image import imread
 
 from metaopt.cli.report import report
 from metaopt.convergence import convergence, group_runs
+from metaopt.plots import convergence_figure
 from metaopt.plugins import registry
 from metaopt.report import comparison_figures, run_figures, write_figures
 from metaopt.run_loop import RunSpec, run
@@ -146,3 +147,20 @@ def test_runs_of_different_problems_do_not_compare(tmp_path):
     done = CliRunner().invoke(report, ["1", "2", "--db", str(db)])
     assert done.exit_code != 0
     assert "runs compare only on one problem; these are on nao-walk, sphere" in str(done.exception)
+
+
+def test_a_minimized_fitness_spanning_decades_is_drawn_on_log_axes(tmp_path):
+    plugins = registry()
+    with RunStore(tmp_path / "runs.db") as store:
+        spec = RunSpec("hs", "sphere", 2000, 1)  # from about 100 down to about 1e-3
+        run(spec, plugins.optimizer("hs"), plugins.problem("sphere"), store)
+        figure = run_figures(store, 1, plugins).figures["convergence"]
+        best = np.minimum.accumulate([e.fitness for e in store.evaluations(1)])
+    top, gap = figure.axes
+    assert top.get_yscale() == "log" and gap.get_yscale() == "log"
+    assert "best so far − optimum (0)" in gap.get_ylabel()  # sphere declares its optimum, 0
+    np.testing.assert_array_equal(gap.get_lines()[0].get_ydata(), best)
+    # Fitness that stays within two decades, or is maximized, keeps linear axes.
+    flat = convergence_figure(convergence(np.linspace(5.0, 1.0, 50), False), "flat")
+    rising = convergence_figure(convergence(np.logspace(-3, 3, 50), True), "rising", 0.0)
+    assert {ax.get_yscale() for ax in (*flat.axes, *rising.axes)} == {"linear"}

@@ -193,6 +193,12 @@ def list_plugins(name: str | None) -> None:
     default=None,
     help="Seconds per evaluation before it is stopped and stored as failed.",
 )
+@click.option(
+    "--target",
+    type=float,
+    default=None,
+    help="Stop once a fitness this good is found (at or below it; at or above when maximizing).",
+)
 @scheduling_options
 @db_option
 def run_command(
@@ -207,6 +213,7 @@ def run_command(
     aggregate: str,
     common_seeds: bool,
     time_limit: float | None,
+    target: float | None,
     executor: str | None,
     workers: int | None,
     scheduler: str | None,
@@ -225,7 +232,9 @@ def run_command(
         seed=secrets.randbelow(2**31) if seed is None else seed,
         optimizer_params=optimizer_params,
         problem_params=problem_params,
-        settings=RunSettings(mode, batch, resample, aggregate, time_limit, common_seeds),
+        settings=RunSettings(
+            mode, batch, resample, aggregate, time_limit, common_seeds=common_seeds, target=target
+        ),
     )
     spec.settings.check(spec.budget)
     with RunStore(db_path) as store:

@@ -36,7 +36,7 @@ from typing import Any
 import cma
 import numpy as np
 
-from metaopt import ConfigError, Optimizer, OptimizerInfo, Param, Space, hookimpl
+from metaopt import ConfigError, Optimizer, OptimizerInfo, Param, Space, budget_param, hookimpl
 
 #: Options that keep cma silent, free of files and of numpy's global generator.
 QUIET = {
@@ -51,7 +51,10 @@ QUIET = {
 class CmaEs(Optimizer):
     """CMA-ES on the unit cube mapped to the space; see the module docstring."""
 
-    def __init__(self, space: Space, seed: int, *, sigma0: float, popsize: int) -> None:
+    def __init__(
+        self, space: Space, seed: int, *, sigma0: float, popsize: int, budget: int
+    ) -> None:
+        # CMA-ES restarts until the run stops, however long it is: the budget changes nothing.
         super().__init__(space, seed)
         self.seed = seed
         self.sigma0 = sigma0
@@ -170,6 +173,7 @@ PARAMS = (
         low_open=True,
     ),
     Param("popsize", int, 0, "candidates per generation; 0: cma's default, 4 + 3 ln(dim)", low=0),
+    budget_param(),
 )
 
 

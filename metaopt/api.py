@@ -1,0 +1,192 @@
+"""metaopt from Python: minimize or maximize a function, and build any optimizer by name.
+
+``minimize(f, bounds, optimizer="hs", budget=2000, seed=1)`` runs the same loop as ``metaopt
+run`` (seeds, failed evaluations, budget, target) on a plain Python function and returns a Result
+with the best point, its fitness and the history of every evaluation; with ``store=PATH`` the run
+is also kept in that run store, where ``metaopt runs``, ``show`` and ``report`` find it.
+``create_optimizer(name, bounds, seed=..., budget=...)`` builds a registered optimizer with its
+declared defaults filled in and validated, for ask/tell loops of one's own.
+"""
+
+from __future__ import annotations
+
+import secrets
+from collections.abc import Callable, Mapping, Sequence
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from metaopt.convergence import convergence
+from metaopt.errors import ConfigError, EvaluationError
+from metaopt.optimizer import Optimizer
+from metaopt.params import resolve
+from metaopt.plugins import registry
+from metaopt.problem import Evaluation, Problem, ProblemInfo, Sense
+from metaopt.run_loop import RunSettings, RunSpec, run
+from metaopt.space import Space, Variable
+from metaopt.store import RunStore
+
+#: What bounds may be: a Space, (lower, upper) pairs, or {variable name: (lower, upper)}.
+Bounds = Space | Sequence[tuple[float, float]] | Mapping[str, tuple[float, float]]
+#: The run store of runs that are not kept (``store=None``).
+IN_MEMORY = ":memory:"
+
+
+@dataclass(frozen=True)
+class History:
+    """Every evaluation of a run, in order: the candidate, its fitness (NaN where it failed)
+    and the best fitness so far."""
+
+    x: np.ndarray  #: shape (evaluations, dim)
+    fitness: np.ndarray
+    best: np.ndarray
+
+
+@dataclass(frozen=True)
+class Result:
+    """What minimize and maximize return."""
+
+    x: np.ndarray  #: the best point found
+    fitness: float  #: f(x)
+    evaluations: int  #: evaluations made (fewer than the budget when the target was reached)
+    failed: int  #: evaluations where f raised or returned NaN or an infinity
+    history: History
+    seed: int  #: the run's seed (drawn at random when none was given)
+    run_id: int | None  #: the run's id in the store, None when the run was not stored
+
+
+def as_space(bounds: Bounds) -> Space:
+    """A Space from a Space, (lower, upper) pairs (variables x0, x1, ...) or {name: (lower,
+    upper)}; ConfigError saying which form is accepted otherwise."""
+    if isinstance(bounds, Space):
+        return bounds
+    if isinstance(bounds, Mapping):
+        pairs, names = list(bounds.values()), list(bounds)
+    else:
+        pairs, names = list(bounds), [f"x{i}" for i in range(len(bounds))]
+    try:
+        variables = [Variable(str(n), float(lo), float(hi)) for n, (lo, hi) in zip(names, pairs)]
+    except (TypeError, ValueError):
+        raise ConfigError(
+            "bounds must be a Space, a sequence of (lower, upper) pairs or a mapping "
+            "{name: (lower, upper)}"
+        ) from None
+    return Space(variables)
+
+
+def create_optimizer(
+    name: str,
+    bounds: Bounds,
+    *,
+    seed: int = 0,
+    budget: int | None = None,
+    **params: Any,
+) -> Optimizer:
+    """The registered optimizer ``name`` over ``bounds``, its declared defaults filled in and
+    ``params`` validated (ConfigError naming what is accepted, with close names).
+
+    ``budget`` is the number of evaluations it will be told; every optimizer declares it (see
+    metaopt.budget_param) and schedules over it (IHS's bandwidth, the GA's mutation step), so
+    give it whenever the run's length is known. Left out, the declared default is used.
+    """
+    info = registry().optimizer(name)
+    given = dict(params)
+    if budget is not None and any(p.name == "budget" for p in info.params):
+        given["budget"] = budget
+    return info.factory(as_space(bounds), seed, **resolve(info.params, given, name))
+
+
+class _FunctionProblem(Problem):
+    """A Python function of x (a 1-D array) as a Problem; the evaluation seed is not used."""
+
+    def __init__(self, f: Callable[[np.ndarray], float], space: Space, sense: Sense) -> None:
+        self.f, self.space, self.sense = f, space, sense
+
+    def evaluate(self, x: np.ndarray, seed: int) -> Evaluation:
+        return Evaluation(float(self.f(x)))
+
+
+def minimize(
+    f: Callable[[np.ndarray], float],
+    bounds: Bounds,
+    optimizer: str = "hs",
+    *,
+    budget: int = 1000,
+    seed: int | None = None,
+    target: float | None = None,
+    store: str | Path | None = None,
+    **params: Any,
+) -> Result:
+    """Minimize f(x) over the box ``bounds`` with ``budget`` evaluations of f.
+
+    ``params`` are the optimizer's parameters (``metaopt list``). The run stops early once a
+    fitness at or below ``target`` is found. f may raise or return NaN for a point it cannot
+    evaluate: that evaluation counts as failed and the run goes on (EvaluationError if all fail).
+    With ``store`` the run is kept in that run store under the problem name
+    ``python:<function name>``.
+    """
+    return _optimize(f, bounds, optimizer, Sense.MINIMIZE, budget, seed, target, store, params)
+
+
+def maximize(
+    f: Callable[[np.ndarray], float],
+    bounds: Bounds,
+    optimizer: str = "hs",
+    *,
+    budget: int = 1000,
+    seed: int | None = None,
+    target: float | None = None,
+    store: str | Path | None = None,
+    **params: Any,
+) -> Result:
+    """As minimize, for the largest f(x); ``target`` stops the run at or above it."""
+    return _optimize(f, bounds, optimizer, Sense.MAXIMIZE, budget, seed, target, store, params)
+
+
+def _optimize(
+    f: Callable[[np.ndarray], float],
+    bounds: Bounds,
+    optimizer: str,
+    sense: Sense,
+    budget: int,
+    seed: int | None,
+    target: float | None,
+    store: str | Path | None,
+    params: dict[str, Any],
+) -> Result:
+    if not callable(f):
+        raise ConfigError(f"f must be a function of x, got {type(f).__name__}")
+    problem = _FunctionProblem(f, as_space(bounds), sense)
+    name = f"python:{getattr(f, '__qualname__', type(f).__name__)}"
+    problem_info = ProblemInfo(name, "a Python function", factory=lambda: problem)
+    spec = RunSpec(
+        optimizer=optimizer,
+        problem=name,
+        budget=budget,
+        seed=secrets.randbelow(2**31) if seed is None else seed,
+        optimizer_params=params,
+        settings=RunSettings(target=target),
+    )
+    with RunStore(IN_MEMORY if store is None else store) as run_store:
+        result = run(spec, registry().optimizer(optimizer), problem_info, run_store)
+        records = list(run_store.evaluations(result.run_id))
+    if result.best_x is None:
+        first = records[0].error if records else "no evaluation"
+        raise EvaluationError(f"every evaluation of {name} failed; the first: {first}")
+    fitness = np.array([np.nan if r.fitness is None else r.fitness for r in records])
+    history = History(
+        x=np.array([r.x for r in records]),
+        fitness=fitness,
+        best=convergence(fitness, sense is Sense.MAXIMIZE).best,
+    )
+    return Result(
+        x=result.best_x,
+        fitness=float(result.best_fitness),
+        evaluations=result.evaluations,
+        failed=result.failed,
+        history=history,
+        seed=spec.seed,
+        run_id=None if store is None else result.run_id,
+    )

@@ -1,0 +1,101 @@
+"""metaopt from Python: minimize/maximize a function, create_optimizer, and the run's target."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+import metaopt
+from metaopt.store import RunStore
+
+
+def sphere(x: np.ndarray) -> float:
+    return float(np.sum((x - 0.5) ** 2))
+
+
+def test_minimize_finds_the_minimum_and_returns_the_history():
+    result = metaopt.minimize(sphere, [(-5.0, 5.0)] * 4, budget=3000, seed=1)
+    assert result.fitness < 1e-4 and np.abs(result.x - 0.5).max() < 0.01
+    assert result.evaluations == 3000 and result.failed == 0 and result.run_id is None
+    history = result.history
+    assert history.x.shape == (3000, 4) and history.fitness.shape == (3000,)
+    np.testing.assert_array_equal(history.best, np.minimum.accumulate(history.fitness))
+    assert history.fitness.min() == result.fitness == sphere(result.x)
+    again = metaopt.minimize(sphere, [(-5.0, 5.0)] * 4, budget=3000, seed=1)
+    np.testing.assert_array_equal(again.history.x, history.x)  # same seed, same run
+
+
+def test_maximize_any_optimizer_with_named_variables_and_its_parameters():
+    bounds = {"width": (0.0, 2.0), "height": (-1.0, 1.0)}
+    result = metaopt.maximize(
+        lambda x: -sphere(x), bounds, "ga", budget=2000, seed=3, population=20
+    )
+    assert result.fitness > -1e-3 and result.fitness == result.history.best[-1]
+    np.testing.assert_array_equal(
+        result.history.best, np.maximum.accumulate(result.history.fitness)
+    )
+
+
+def test_the_target_stops_the_run_at_the_first_fitness_that_good():
+    result = metaopt.minimize(sphere, [(-5.0, 5.0)] * 3, budget=50_000, seed=2, target=1e-2)
+    assert result.fitness <= 1e-2 < result.history.fitness[:-1].min()
+    assert result.evaluations == len(result.history.fitness) < 50_000
+    with pytest.raises(metaopt.ConfigError, match="target must be a finite fitness"):
+        metaopt.minimize(sphere, [(0.0, 1.0)], target=float("nan"))
+
+
+def test_a_stored_run_is_in_the_store_for_runs_show_and_report(tmp_path):
+    db = tmp_path / "api.db"
+    result = metaopt.minimize(sphere, [(-1.0, 1.0)] * 2, budget=200, seed=4, store=db)
+    with RunStore(db) as store:
+        record = store.run(result.run_id)
+        stored = [e.fitness for e in store.evaluations(result.run_id)]
+    assert record.problem == "python:sphere" and record.optimizer == "hs"
+    assert record.status == "finished" and record.optimizer_params["budget"] == 200
+    np.testing.assert_array_equal(stored, result.history.fitness)
+
+
+def test_failed_evaluations_count_and_a_function_that_always_fails_is_reported():
+    def half_broken(x: np.ndarray) -> float:
+        if x[0] < 0:
+            raise ValueError("cannot evaluate left of 0")
+        return float(x[0])
+
+    result = metaopt.minimize(half_broken, [(-1.0, 1.0)], budget=300, seed=1)
+    assert 0 < result.failed < 300 and result.fitness >= 0.0
+    assert np.isnan(result.history.fitness).sum() == result.failed
+
+    def broken(x: np.ndarray) -> float:
+        raise ValueError("no")
+
+    with pytest.raises(
+        metaopt.EvaluationError, match=r"every evaluation .* failed.*ValueError: no"
+    ):
+        metaopt.minimize(broken, [(0.0, 1.0)], budget=20, seed=1)
+
+
+def test_create_optimizer_fills_defaults_validates_and_passes_the_budget():
+    for name in ("hs", "ga", "random"):
+        optimizer = metaopt.create_optimizer(name, [(0.0, 1.0)] * 3, seed=1, budget=500)
+        batch = optimizer.ask(optimizer.batch_size)
+        optimizer.tell(batch, batch.sum(axis=1))
+    hs = metaopt.create_optimizer("hs", [(0.0, 1.0)], budget=500, hms=5)
+    assert hs.budget == 500 and hs.hms == 5 and hs.pitch_adjust == "ihs"
+    assert metaopt.create_optimizer("ga", [(0.0, 1.0)], budget=700).budget == 700
+
+
+@pytest.mark.parametrize(
+    ("name", "bounds", "params", "message"),
+    [
+        ("hss", [(0, 1)], {}, "unknown optimizer 'hss'. Did you mean 'hs'"),
+        ("hs", [(0, 1)], {"hmc": 0.5}, "no parameter 'hmc'. Did you mean 'hmcr'"),
+        ("hs", [(0, 1)], {"hmcr": 2.0}, r"expected a float in \[0, 1\]"),
+        ("hs", [(1, 0)], {}, "lower bound 1.0 >= upper bound 0.0"),
+        ("hs", [1, 2], {}, r"sequence of \(lower, upper\) pairs"),
+    ],
+)
+def test_bad_input_is_one_clear_metaopt_error(name, bounds, params, message):
+    with pytest.raises(metaopt.MetaoptError, match=message):
+        metaopt.create_optimizer(name, bounds, **params)
+    with pytest.raises(metaopt.ConfigError, match="f must be a function of x"):
+        metaopt.minimize("f", [(0, 1)])
