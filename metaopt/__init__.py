@@ -1,7 +1,7 @@
 """metaopt: metaheuristic optimization with plugins."""
 
 from metaopt.api import History, Result, create_optimizer, maximize, minimize
-from metaopt.errors import ConfigError, EvaluationError, MetaoptError, StoreError
+from metaopt.errors import ConfigError, EvaluationError, MetaoptError, RunFailed, StoreError
 from metaopt.hookspecs import hookimpl
 from metaopt.optimizer import Optimizer, OptimizerInfo, budget_param, restore_rng, rng_state
 from metaopt.params import Param
@@ -22,6 +22,7 @@ __all__ = [
     "Problem",
     "ProblemInfo",
     "Result",
+    "RunFailed",
     "Sense",
     "Space",
     "StoreError",

@@ -19,7 +19,7 @@ from typing import Any
 import numpy as np
 
 from metaopt.convergence import convergence
-from metaopt.errors import ConfigError, EvaluationError
+from metaopt.errors import ConfigError
 from metaopt.optimizer import Optimizer
 from metaopt.params import resolve
 from metaopt.plugins import registry
@@ -123,7 +123,8 @@ def minimize(
 
     ``params`` are the optimizer's parameters (``metaopt list``). The run stops early once a
     fitness at or below ``target`` is found. f may raise or return NaN for a point it cannot
-    evaluate: that evaluation counts as failed and the run goes on (EvaluationError if all fail).
+    evaluate: that evaluation counts as failed and the run goes on (RunFailed, naming the first
+    error, when the first ten or all of them fail).
     With ``store`` the run is kept in that run store under the problem name
     ``python:<function name>``.
     """
@@ -172,9 +173,6 @@ def _optimize(
     with RunStore(IN_MEMORY if store is None else store) as run_store:
         result = run(spec, registry().optimizer(optimizer), problem_info, run_store)
         records = list(run_store.evaluations(result.run_id))
-    if result.best_x is None:
-        first = records[0].error if records else "no evaluation"
-        raise EvaluationError(f"every evaluation of {name} failed; the first: {first}")
     fitness = np.array([np.nan if r.fitness is None else r.fitness for r in records])
     history = History(
         x=np.array([r.x for r in records]),

@@ -286,36 +286,35 @@ class PhysicsBackend(ABC):
 
     # Read-backs and an external force: what an engine actually simulates, measured from the
     # engine itself (the agreement suite in metaopt.testing and perturbations use them).
-    # Engines implement all of them; the defaults only name the engine that does not.
 
+    @abstractmethod
     def joint_velocities(self) -> np.ndarray:
         """Measured joint velocities, rad/s, in joint order."""
-        raise NotImplementedError(f"{type(self).__name__} does not report joint velocities")
 
+    @abstractmethod
     def joint_torques(self) -> np.ndarray:
         """Torque each joint's motor applied during the last physics step, N·m, in joint
         order, read back from the engine (not the limit it was given)."""
-        raise NotImplementedError(f"{type(self).__name__} does not report joint torques")
 
+    @abstractmethod
     def body_mass(self, name: str) -> float:
         """Mass of the body called name as the engine holds it, kg."""
-        raise NotImplementedError(f"{type(self).__name__} does not report body masses")
 
+    @abstractmethod
     def body_inertia(self, name: str) -> Vec3:
         """Principal moments of inertia of the body called name about its centre as the
         engine holds them, kg·m², in the axes of the construction pose."""
-        raise NotImplementedError(f"{type(self).__name__} does not report body inertias")
 
+    @abstractmethod
     def ground_friction(self) -> float:
         """The friction coefficient the engine's robot–ground contacts use now, read back from
         the engine (math.inf where friction is unlimited)."""
-        raise NotImplementedError(f"{type(self).__name__} does not report its friction")
 
+    @abstractmethod
     def apply_force(self, body: str, force: Vec3) -> None:
         """From now on, a constant force (N, world frame) at the centre of mass of ``body``
         during every physics step, until the next call for that body or reset;
         (0, 0, 0) removes it. Part of the state save_state captures."""
-        raise NotImplementedError(f"{type(self).__name__} cannot apply external forces")
 
     @abstractmethod
     def save_state(self) -> Any:

@@ -18,6 +18,7 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 from metaopt.cli import main
+from metaopt.plugins import registry
 
 MAX_INT64 = 2**63 - 1
 #: Characters of generated names and values: letters, digits, punctuation that means something
@@ -71,7 +72,9 @@ RUN_BASE = ["run", "-o", "hs", "-p", "sphere", "--budget", "5", "--set", "dim=2"
 COMPARE_BASE = ["compare", "-o", "hs", "-p", "sphere", "--seeds", "1", "--budget", "5"]
 COMMANDS = ["list", "run", "resume", "runs", "show", "export", "replay", "report", "compare",
             "robustness", "new"]  # fmt: skip
-OPTIMIZERS, PROBLEMS = ["ga", "hs", "random"], ["sphere", "rastrigin", "nao-walk"]
+#: Every installed name, so that a generated "unknown" name never names a real plugin.
+OPTIMIZERS, PROBLEMS = sorted(registry().optimizers), sorted(registry().problems)
+PLUGINS = sorted(name for table in registry().tables().values() for name in table)
 
 
 @st.composite
@@ -200,11 +203,19 @@ _CASES = {
     # robustness (a stored nao-walk gait; every case is refused before any episode)
     "robustness NAME": _argument(["robustness"], _RUN_ID),
     "robustness --engines": _option(
-        ["robustness", "hs_walk"], "--engines", _unknown_name(["mujoco", "pybullet", "ode"])
+        ["robustness", "hs_walk"],
+        "--engines",
+        _unknown_name(["mujoco", "pybullet", "ode"]),
+        also=("unknown physics backend",),
     ),
     "robustness --seeds": _option(["robustness", "hs_walk"], "--seeds", _int_outside(1, 10_000)),
     "robustness --seed": _option(["robustness", "hs_walk"], "--seed", _int_outside(0, MAX_INT64)),
-    "robustness --cells": _option(["robustness", "hs_walk"], "--cells", _text(1)),
+    "robustness --cells": _option(
+        ["robustness", "hs_walk"],
+        "--cells",
+        _text(1).filter(lambda t: t.strip() not in {"nominal", "latency 1"}),
+        also=("no perturbation",),
+    ),
     "robustness --set": lambda d: _option(
         ["robustness", "hs_walk"],
         "--set",
@@ -257,7 +268,7 @@ _CASES = {
         "--directory",
         st.sampled_from([*BAD_FOLDER_PATHS, FOLDER]),
     ),
-    "list NAME": _argument(["list"], _unknown_name([*OPTIMIZERS, *PROBLEMS])),
+    "list NAME": _argument(["list"], _unknown_name(PLUGINS)),
     # anywhere
     "unknown option": _unknown_option,
     "unknown command": _argument([], _not_in(COMMANDS).filter(bool)),

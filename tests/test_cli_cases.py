@@ -232,7 +232,7 @@ def test_list_shows_an_executor(tmp_path):
     ("args", "warning"),
     [
         (["-o", "hs", "--budget", "10"], "hms 20 is not smaller than the budget's 10"),
-        (["-o", "ga", "--budget", "30"], "population 50 is not smaller than the budget's 30"),
+        (["-o", "ga", "--budget", "30"], "population 100 is not smaller than the budget's 30"),
     ],
 )
 def test_settings_that_cannot_work_as_meant_are_warned_in_one_line(tmp_path, args, warning):
