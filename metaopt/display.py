@@ -324,7 +324,7 @@ def robustness_table(label: str, version: str, results: Sequence, metrics: Seque
                          justify="right")  # fmt: skip
     for result in results:
         median, low, high = result.summary(metrics[0])
-        cells = [f"{median:.3f}", f"{low:.3f}-{high:.3f}"]
+        cells = [f"{median:.3f}", f"{low:.3f} to {high:.3f}"]
         for metric in metrics[1:]:
             value = result.summary(metric)[0]
             cells.append(f"{value:.0%}" if metric.startswith("fell") else f"{value:.3f}")
