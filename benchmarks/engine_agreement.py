@@ -27,10 +27,14 @@ def figures_of(backend: str) -> list[Figure] | str:
 def table(backends: list[str]) -> str:
     """The markdown table: a row per figure (an engine with unlimited friction has its own
     friction rows), a column per engine."""
-    columns = {backend: figures_of(backend) for backend in backends}
+    # Each engine's figures by label, or why it cannot run here.
+    columns = {
+        backend: column if isinstance(column, str) else {f.label: f for f in column}
+        for backend, column in ((b, figures_of(b)) for b in backends)
+    }
     rows: dict[str, Figure] = {}
     for column in columns.values():
-        for figure in [] if isinstance(column, str) else column:
+        for figure in [] if isinstance(column, str) else column.values():
             rows.setdefault(figure.label, figure)
     lines = [
         "| figure | expected | " + " | ".join(backends) + " |",
@@ -42,7 +46,7 @@ def table(backends: list[str]) -> str:
             if isinstance(column, str):
                 cells.append(column if row == 0 else "")
                 continue
-            measured = {f.label: f for f in column}.get(label)
+            measured = column.get(label)
             if measured is None:
                 cells.append("–")
             else:

@@ -28,38 +28,35 @@ import time
 
 import numpy as np
 
-from metaopt.physics import PhysicsSettings
+from metaopt.engine_agreement import engine as physics_engine
 from metaopt.plugins import registry
 from metaopt_problems.nao_walk.episode import DRIVEN_JOINTS, EpisodeRunner, EpisodeSettings
 from metaopt_problems.nao_walk.plugin import NaoWalk
-from metaopt_problems.nao_walk.robot import nao
 from metaopt_problems.nao_walk.stored_gaits import gait_vector, load_gait
 
 
 def measure(backend: str, episodes: int) -> dict[str, float]:
     """Best-of-`episodes` wall time of a walking episode and of its open-loop replay, taken
     alternately so that load from other processes hits both alike."""
-    info = registry().physics_backend(backend)
-    engine = info.factory(nao(), PhysicsSettings(friction=info.default_friction))
-    runner = EpisodeRunner(engine, EpisodeSettings())
-    gait = NaoWalk(backend=backend).gait(gait_vector(load_gait()))
-    recorded = runner.run(gait, record=True)  # also simulates and stores the lock phase
-    assert not recorded.fell, "the reference gait should walk the whole episode"
-    sequence = np.tile(engine.robot.rest_angles, (len(recorded.trajectory["time"]), 1))
-    for name in DRIVEN_JOINTS:
-        sequence[:, engine.robot.joint_index(name)] = recorded.trajectory[f"{name}_target"]
-    lock_state = engine.save_state()
-    episode_wall = physics_wall = float("inf")
-    for _ in range(episodes):
-        start = time.perf_counter()
-        runner.run(gait)
-        episode_wall = min(episode_wall, time.perf_counter() - start)
-        start = time.perf_counter()
-        engine.restore_state(lock_state)
-        for targets in sequence:
-            engine.step(targets)
-        physics_wall = min(physics_wall, time.perf_counter() - start)
-    engine.close()
+    with physics_engine(backend) as engine:  # the NAO at the engine's default friction
+        runner = EpisodeRunner(engine, EpisodeSettings())
+        gait = NaoWalk(backend=backend).gait(gait_vector(load_gait()))
+        recorded = runner.run(gait, record=True)  # also simulates and stores the lock phase
+        assert not recorded.fell, "the reference gait should walk the whole episode"
+        sequence = np.tile(engine.robot.rest_angles, (len(recorded.trajectory["time"]), 1))
+        for name in DRIVEN_JOINTS:
+            sequence[:, engine.robot.joint_index(name)] = recorded.trajectory[f"{name}_target"]
+        lock_state = engine.save_state()
+        episode_wall = physics_wall = float("inf")
+        for _ in range(episodes):
+            start = time.perf_counter()
+            runner.run(gait)
+            episode_wall = min(episode_wall, time.perf_counter() - start)
+            start = time.perf_counter()
+            engine.restore_state(lock_state)
+            for targets in sequence:
+                engine.step(targets)
+            physics_wall = min(physics_wall, time.perf_counter() - start)
     return {
         "episode_s": episode_wall,
         "episode_rate": recorded.time_walked / episode_wall,

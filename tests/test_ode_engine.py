@@ -177,6 +177,7 @@ def test_a_nao_walk_episode_on_ode_is_deterministic() -> None:
         x = (problem.space.lower + problem.space.upper) / 2
         results.append(problem.evaluate(x, seed=7))
         assert problem.physics.friction == math.inf
+        assert problem.runner.backend.ground_friction() == math.inf  # as ODE's contacts hold it
         problem.close()
     assert results[0] == results[1]
     assert results[0].metrics["time_walked"] > 0

@@ -74,14 +74,16 @@ def _construction_pose(engine: PhysicsBackend) -> None:
 def test_model_matches_the_description(name: str) -> None:
     robot = nao()
     backend = registry().physics_backend(name).factory(robot, PhysicsSettings())
-    _construction_pose(backend)
-    mass, limits, height = _model_mass_and_limits(backend)
-    assert mass == pytest.approx(4.6071, abs=1e-6)
-    assert list(limits) == list(robot.joint_names)
-    for h in robot.hinges:
-        assert limits[h.name] == pytest.approx((h.lower, h.upper), abs=1e-9)
-    assert height == pytest.approx(0.605, abs=1e-6)
-    backend.close()
+    try:
+        _construction_pose(backend)
+        mass, limits, height = _model_mass_and_limits(backend)
+        assert mass == pytest.approx(4.6071, abs=1e-6)
+        assert list(limits) == list(robot.joint_names)
+        for h in robot.hinges:
+            assert limits[h.name] == pytest.approx((h.lower, h.upper), abs=1e-9)
+        assert height == pytest.approx(0.605, abs=1e-6)
+    finally:
+        backend.close()
 
 
 def _tilt_degrees(engine: PhysicsBackend) -> float:

@@ -305,8 +305,13 @@ class OdeBackend(PhysicsBackend):
         set_param = self._ode.dJointSetHingeParam
         for joint, velocity in zip(self._joints, self._command.tolist()):
             set_param(joint, PARAM_VEL, velocity)
-        for _ in range(self._substeps):
+        for _ in range(self._substeps - 1):
             self._physics_step()
+        # joint_torques needs the child frames as the last physics step begins (only that
+        # step's feedback is read): taken once per control period, not every physics step.
+        for k, row in enumerate(self._child):
+            self._child_rotation[k] = self._rotation[row]
+        self._physics_step()
         self._steps += 1
         self._readings = None
         self._read_angles()
@@ -340,8 +345,6 @@ class OdeBackend(PhysicsBackend):
                 if foot >= 0:
                     set_feedback(joint, feedback[c])
                     touching.append((foot, g, c))
-        for k, row in enumerate(self._child):
-            self._child_rotation[k] = self._rotation[row]
         lib.dWorldStep(world, self._h)
         lib.dJointGroupEmpty(group)
 
