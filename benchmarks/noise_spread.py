@@ -12,19 +12,12 @@ import argparse
 import numpy as np
 
 from metaopt.plugins import registry
-from metaopt.seeding import EvaluationSeeds
-from metaopt_problems.nao_walk.stored_gaits import gait_problem, gait_vector, load_gait
+from metaopt_problems.nao_walk.stored_gaits import load_gait, replay_over_seeds
 
 
 def spread(gait: str, engine: str, noise: float, seeds: int) -> str:
     """One table cell: the distances over seeds at noise on engine."""
-    record = load_gait(gait)
-    problem = gait_problem({**record["problem_params"], "noise": noise}, engine)
-    try:
-        runs = [problem.evaluate(gait_vector(record), EvaluationSeeds(7)(i)).metrics
-                for i in range(seeds)]  # fmt: skip
-    finally:
-        problem.close()
+    runs = replay_over_seeds(load_gait(gait), engine, seeds, noise, run_seed=7)
     distances = np.array([m["distance"] for m in runs])
     falls = sum(int(m["fell"]) for m in runs)
     cell = f"{distances.mean():.3f} ± {distances.std():.3f} ({distances.min():.3f} – "

@@ -33,9 +33,8 @@ from metaopt_problems.nao_walk.stored_gaits import (
     ENGINES,
     claim_statistics,
     gait_metrics,
-    gait_seed,
-    gait_vector,
     load_gait,
+    replay_gait,
     replay_over_seeds,
 )
 
@@ -95,7 +94,7 @@ def record(db: Path, run_id: int, command: str, description: str, claims: list[s
         "parameters": {name: float(value) for name, value in zip(names, best.x)},
         "metrics": metrics,
         "claims": {},
-        "engine_versions": {engine: importlib.metadata.version(engine) for engine in ENGINES},
+        "engine_versions": engine_versions(),
     }
     gait["claims"] = {engine: claim(gait, engine) for engine in claims}
     for engine, claimed in gait["claims"].items():
@@ -106,9 +105,8 @@ def record(db: Path, run_id: int, command: str, description: str, claims: list[s
 
 def remeasured(gait: dict, why: str) -> dict:
     """The record gait with what it does on every engine now (see the module's docstring)."""
-    x, seed = gait_vector(gait), gait_seed(gait)
-    metrics = {e: gait_metrics(gait["problem_params"], x, seed, e) for e in ENGINES}
-    versions = {engine: importlib.metadata.version(engine) for engine in ENGINES}
+    metrics = {e: replay_gait(gait, e) for e in ENGINES}
+    versions = engine_versions()
     earlier = list(gait.get("earlier_metrics", []))
     if metrics != gait["metrics"] or versions != gait["engine_versions"]:
         earlier.append(
@@ -119,6 +117,11 @@ def remeasured(gait: dict, why: str) -> dict:
     if earlier:
         updated["earlier_metrics"] = earlier
     return updated
+
+
+def engine_versions() -> dict[str, str]:
+    """The installed version of every engine a record's metrics cover."""
+    return {engine: importlib.metadata.version(engine) for engine in ENGINES}
 
 
 def walks(claimed: dict) -> bool:

@@ -21,6 +21,7 @@ import pytest
 
 from metaopt.params import resolve
 from metaopt.plugins import registry
+from metaopt_problems.nao_walk.episode import EpisodeResult
 from metaopt_problems.nao_walk.plugin import CONTROLLERS
 from metaopt_problems.nao_walk.stored_gaits import (
     ENGINES,
@@ -81,6 +82,10 @@ def test_stored_gait_is_complete(name: str) -> None:
     assert found_by["command"].startswith("metaopt ")
     assert registry().optimizer(found_by["optimizer"])
     assert set(gait["metrics"]) == set(ENGINES) == set(gait["engine_versions"])
+    # every metric an episode reports, so that the replay check compares them all
+    reported = set(EpisodeResult(0.0, 0.0, 0.0, False, 0.0, 0.0, 0.0).metrics())
+    for metrics in gait["metrics"].values():
+        assert set(metrics) >= reported, reported - set(metrics)
     assert gait["claims"] and set(gait["claims"]) <= set(ENGINES)
     for claim in gait["claims"].values():
         assert set(claim) == {"noise", "seeds", "min_median_distance", "max_median_drift",

@@ -90,10 +90,12 @@ def replay_gait(record: dict, engine: str) -> dict:
     return gait_metrics(record["problem_params"], gait_vector(record), gait_seed(record), engine)
 
 
-def replay_over_seeds(record: dict, engine: str, seeds: int, noise: float) -> list[dict]:
-    """A stored gait's metrics on engine over ``seeds`` seeds (EvaluationSeeds(0)) at
+def replay_over_seeds(
+    record: dict, engine: str, seeds: int, noise: float, run_seed: int = 0
+) -> list[dict]:
+    """A stored gait's metrics on engine over ``seeds`` seeds (EvaluationSeeds(run_seed)) at
     ``noise``, from one fresh problem."""
-    draw = EvaluationSeeds(0)
+    draw = EvaluationSeeds(run_seed)
     problem = gait_problem({**record["problem_params"], "noise": noise}, engine)
     try:
         return [dict(problem.evaluate(gait_vector(record), draw(i)).metrics) for i in range(seeds)]
