@@ -342,8 +342,9 @@ class RunStore:
                 "INSERT OR REPLACE INTO run_owners VALUES (?, ?, ?, ?)",
                 (run_id, os.getpid(), HOST, time.time()),
             )
-        self._owned.add(run_id)
-        self._last_heartbeat = time.time()
+            # under the lock: the flusher's heartbeat iterates _owned
+            self._owned.add(run_id)
+            self._last_heartbeat = time.time()
         if self._flusher is None:
             self._start_flusher()
 
