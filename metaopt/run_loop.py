@@ -36,7 +36,7 @@ from metaopt.executors import (
 from metaopt.optimizer import Optimizer, OptimizerInfo
 from metaopt.params import resolve
 from metaopt.problem import Problem, ProblemInfo, Sense
-from metaopt.resampling import AGGREGATES, aggregate_samples
+from metaopt.resampling import AGGREGATES, aggregate_fitness, aggregate_metrics
 from metaopt.seeding import CommonSeeds, EvaluationSeeds
 from metaopt.store import EvaluationRecord, RunRecord, RunStore
 from metaopt.versions import environment_versions
@@ -483,12 +483,12 @@ class _Session:
         outcomes = candidate.outcomes
         if any(o.fitness is None for o in outcomes):
             return math.inf
-        fitness, metrics = aggregate_samples(
-            [o.fitness for o in outcomes], [o.metrics for o in outcomes], self.settings.aggregate
-        )
+        aggregate = self.settings.aggregate
+        fitness = aggregate_fitness([o.fitness for o in outcomes], aggregate)
         score = self.sign * fitness
-        if score < self.best_score:
+        if score < self.best_score:  # metrics are combined only for a new best
             self.best_score = score
+            metrics = aggregate_metrics([o.metrics for o in outcomes], aggregate)
             self.best = (fitness, candidate.x.copy(), metrics)
         return score
 

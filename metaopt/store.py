@@ -22,7 +22,7 @@ from typing import Any
 import numpy as np
 
 from metaopt.errors import StoreError
-from metaopt.resampling import aggregate_samples
+from metaopt.resampling import aggregate_fitness, aggregate_metrics
 
 FORMAT_NAME = "metaopt-run-store"
 SCHEMA_VERSION = 1
@@ -342,8 +342,9 @@ class RunStore:
                 "INSERT OR REPLACE INTO run_owners VALUES (?, ?, ?, ?)",
                 (run_id, os.getpid(), HOST, time.time()),
             )
-        self._owned.add(run_id)
-        self._last_heartbeat = time.time()
+            # under the lock: the flusher's heartbeat iterates _owned
+            self._owned.add(run_id)
+            self._last_heartbeat = time.time()
         if self._flusher is None:
             self._start_flusher()
 
@@ -509,19 +510,19 @@ class RunStore:
         for evaluation in self.evaluations(run.id):
             by_candidate.setdefault(evaluation.candidate, []).append(evaluation)
         sign = -1.0 if run.sense == "maximize" else 1.0
-        best_record: CandidateRecord | None = None
         aggregate = run.settings.get("aggregate", "mean")
+        best: tuple[float, int, list[EvaluationRecord]] | None = None
         for number, samples in by_candidate.items():
             if len(samples) != resample or any(e.fitness is None for e in samples):
                 continue
-            fitness, metrics = aggregate_samples(
-                [e.fitness for e in samples], [e.metrics for e in samples], aggregate
-            )
-            if best_record is None or sign * fitness < sign * best_record.fitness:
-                best_record = CandidateRecord(
-                    number, samples[0].x, fitness, metrics, samples, aggregate
-                )
-        return best_record
+            fitness = aggregate_fitness([e.fitness for e in samples], aggregate)
+            if best is None or sign * fitness < sign * best[0]:
+                best = (fitness, number, samples)
+        if best is None:
+            return None
+        fitness, number, samples = best  # metrics are combined for this candidate only
+        metrics = aggregate_metrics([e.metrics for e in samples], aggregate)
+        return CandidateRecord(number, samples[0].x, fitness, metrics, samples, aggregate)
 
     def best_evaluation(self, run: RunRecord) -> EvaluationRecord | None:
         """The best successful evaluation of a run under its sense, or None."""

@@ -5,6 +5,7 @@ import numpy as np
 import pytest
 
 from metaopt import StoreError
+from metaopt import store as store_module
 from metaopt.store import FLUSH_INTERVAL, RunStore
 
 
@@ -91,3 +92,32 @@ def test_two_writers_on_one_file_keep_all_their_data(tmp_path):
     with RunStore(path) as store:
         assert store.evaluation_counts(run_a) == (200, 0)
         assert store.evaluation_counts(run_b) == (200, 0)
+
+
+def test_an_owners_heartbeat_is_renewed_and_a_silent_remote_claim_taken_over(tmp_path, monkeypatch):
+    """The flusher renews a claim's heartbeat; another host's claim is refused while its
+    heartbeat is fresh and taken over once it is older than OWNER_TIMEOUT."""
+    monkeypatch.setattr(store_module, "HEARTBEAT_INTERVAL", 0.1)
+    with RunStore(tmp_path / "h.db") as store:
+        run_id = _new_run(store)
+        store.claim(run_id)
+        (first,) = store.read("SELECT heartbeat FROM run_owners")[0]
+        deadline = time.monotonic() + 20 * FLUSH_INTERVAL
+        renewed = first
+        while time.monotonic() < deadline and renewed == first:
+            time.sleep(0.05)
+            (renewed,) = store.read("SELECT heartbeat FROM run_owners")[0]
+        assert renewed > first
+        store.finish_run(run_id, "finished", 0.0)
+        assert store.read("SELECT * FROM run_owners") == []  # released
+
+        remote = "UPDATE run_owners SET pid = 1, host = 'elsewhere', heartbeat = ?"
+        store.claim(run_id)
+        with store._lock:
+            store._owned.clear()  # this process's flusher no longer renews it
+        store._connection.execute(remote, (time.time(),))
+        with pytest.raises(StoreError, match="on host elsewhere"):
+            store.claim(run_id)
+        store._connection.execute(remote, (time.time() - store_module.OWNER_TIMEOUT - 1,))
+        store.claim(run_id)  # a silent remote owner is taken as dead
+        assert store.read("SELECT host FROM run_owners") == [(store_module.HOST,)]
