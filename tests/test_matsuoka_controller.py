@@ -213,6 +213,19 @@ def test_space_follows_table_2_with_the_slips_fixed():
     assert all(v.description for v in space.variables)
 
 
+def test_weight_scale_widens_the_output_weights_alone():
+    from metaopt_problems.nao_walk.plugin import NaoWalk
+
+    wide, table_2 = NaoWalk(weight_scale=10.0).space, cpg_space()
+    bounds = dict(zip(wide.names, zip(wide.lower, wide.upper)))
+    assert bounds["w11"] == (-40.0, 10.0) and bounds["w12"] == (-50.0, 0.0)
+    others = [i for i, name in enumerate(PARAM_NAMES) if name not in ("w11", "w12")]
+    assert np.array_equal(wide.lower[others], table_2.lower[others])
+    assert np.array_equal(wide.upper[others], table_2.upper[others])
+    with pytest.raises(ConfigError, match="weight_scale"):
+        NaoWalk(controller="extended", weight_scale=2.0)
+
+
 @pytest.mark.parametrize(
     ("params", "message"),
     [

@@ -70,11 +70,25 @@ _BOUNDS: tuple[tuple[float, float, str], ...] = (
 )
 
 
-def cpg_space() -> Space:
-    """The 10 decision variables in the paper's order with Table 2's bounds (slips fixed)."""
+#: The output weights, whose bounds ``weight_scale`` widens.
+WEIGHT_NAMES = ("w11", "w12")
+
+
+def cpg_space(weight_scale: float = 1.0) -> Space:
+    """The 10 decision variables in the paper's order with Table 2's bounds (slips fixed).
+
+    ``weight_scale`` multiplies the bounds of the output weights w11 and w12: Table 2 read as
+    if its weights were in other units, the knob of the experiment that asks whether Table 2's
+    few degrees of joint swing are what keeps the paper's controller from walking.
+    """
     return Space(
         [
-            Variable(name, lower, upper, description)
+            Variable(
+                name,
+                lower * weight_scale if name in WEIGHT_NAMES else lower,
+                upper * weight_scale if name in WEIGHT_NAMES else upper,
+                description,
+            )
             for name, (lower, upper, description) in zip(PARAM_NAMES, _BOUNDS)
         ]
     )

@@ -93,6 +93,9 @@ PARAMS = (
           low=0.0, high=1.0),
     Param("servo_gain", float, 10.0, "joint velocity command per radian of angle error, 1/s",
           low=0.0, low_open=True),
+    Param("weight_scale", float, 1.0, "paper controller: multiplies Table 2's bounds of the "
+          "output weights w11, w12 (1 = the paper's; larger = wider joint swings allowed)",
+          low=1.0, high=100.0),
     Param("fall_height", float, 0.25, "fallen when the torso centre is lower than this, m",
           low=0.0),
     Param("fall_tilt", float, 60.0, "fallen when the torso tilts further than this, degrees",
@@ -137,6 +140,7 @@ class NaoWalk(Problem):
         friction_scale: float = 1.0,
         slip: float = 5e-3,
         servo_gain: float = 10.0,
+        weight_scale: float = 1.0,
         fall_height: float = 0.25,
         fall_tilt: float = 60.0,
         noise: float = 0.0,
@@ -180,8 +184,14 @@ class NaoWalk(Problem):
             raise ConfigError(
                 f"nao-walk: unknown controller {controller!r}; accepted: {', '.join(CONTROLLERS)}"
             )
+        if weight_scale != 1.0 and controller != "paper":
+            raise ConfigError(
+                f"nao-walk: weight_scale widens the paper controller's Table 2 bounds; with "
+                f"controller={controller!r} leave it at 1"
+            )
         self.controller = controller
-        self.space = CONTROLLER_KINDS[controller].space()
+        kind = CONTROLLER_KINDS[controller]
+        self.space = cpg_space(weight_scale) if controller == "paper" else kind.space()
         self.fitness_kind = fitness
         #: the first engine's physics settings
         self.physics = self.physics_on[self.engines[0]]
