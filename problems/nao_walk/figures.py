@@ -11,6 +11,7 @@ from matplotlib.figure import Figure
 
 from .controller import paper_angles_deg
 from .episode import DRIVEN_JOINTS, EpisodeResult
+from .rhythm import describe, rhythm
 
 #: Panels of the joint-angle figure: (label, paper figure, column of paper_angles_deg for the
 #: left leg; the right leg's is 3 further).
@@ -35,7 +36,9 @@ def walk_figures(result: EpisodeResult, engine: str) -> dict[str, Figure]:
         f", fell after {result.time_walked:.1f} s" if result.fell else ""
     )
     return {
-        "joint_angles": _joint_angles(trajectory, f"Joint angles ({engine}; {outcome})"),
+        "joint_angles": _joint_angles(
+            trajectory, f"Joint angles ({engine}; {outcome})\n{describe(rhythm(trajectory))}"
+        ),
         "drift": _over_time(
             trajectory, "y", "lateral position Y of the torso (m)",
             f"Lateral drift, Fig. 9 ({engine}; {outcome})",
