@@ -1,74 +1,57 @@
-"""docs/paper-reproduction.md is exactly what scripts/paper_study.py builds from the committed
-result files, and those files agree with each other."""
+"""scripts/paper_study.py: the two analyses the paper's study keeps outside metaopt (Table 2's
+swing bounds, the rhythm of each cell's best gaits), on a real tiny experiment."""
 
 from __future__ import annotations
 
-import csv
 import importlib.util
-import statistics
 import sys
 from pathlib import Path
 
 import pytest
 
-ROOT = Path(__file__).parents[1]
-SCRIPT = ROOT / "scripts" / "paper_study.py"
-OUT = ROOT / "docs" / "paper-reproduction"
-DOC = ROOT / "docs" / "paper-reproduction.md"
+from tests.conftest import metaopt_cli
 
-pytestmark = pytest.mark.skipif(
-    not (OUT / "runs.csv").exists(), reason="the study's result files are not committed"
-)
+ROOT = Path(__file__).parents[1]
+EXPERIMENTS = ROOT / "docs" / "paper-reproduction" / "experiments"
 
 
 @pytest.fixture(scope="module")
 def study():
-    """The script, imported as a module."""
-    spec = importlib.util.spec_from_file_location("paper_study", SCRIPT)
+    spec = importlib.util.spec_from_file_location(
+        "paper_study", ROOT / "scripts" / "paper_study.py"
+    )
     module = importlib.util.module_from_spec(spec)
     sys.modules["paper_study"] = module
     spec.loader.exec_module(module)
     return module
 
 
-def read(path: Path) -> list[dict[str, str]]:
-    with path.open(newline="") as handle:
-        return list(csv.DictReader(handle))
+def test_the_study_files_are_valid_experiments() -> None:
+    from metaopt.experiment import load_experiment
+    from metaopt.plugins import registry
+
+    files = sorted(EXPERIMENTS.glob("*.toml"))
+    assert {f.stem for f in files} >= {"paper-study", "paper-slip", "paper-noise"}
+    for path in files:
+        experiment = load_experiment(path, registry())
+        assert experiment.problem == "nao-walk" and len(experiment.seeds) >= 5
 
 
-def test_report_only_rebuilds_the_committed_document(study):
-    assert study.build_report(OUT) == DOC.read_text(), (
-        "docs/paper-reproduction.md differs from what its result files give: run "
-        "`python scripts/paper_study.py --report-only`"
+def test_swing_bounds_are_deterministic_and_scale_with_the_weights(study) -> None:
+    bounds = study.swing_bounds(samples=20, seed=3)
+    assert bounds == study.swing_bounds(samples=20, seed=3)
+    assert 0 < bounds["oscillating_fraction"] < 1
+    assert bounds["hip_swing_median"] == pytest.approx(4 * bounds["y_swing_median"])
+    assert bounds["y_swing_median"] <= bounds["y_swing_p90"] <= bounds["y_swing_max"]
+
+
+def test_rhythms_of_a_tiny_experiment(study, tmp_path: Path) -> None:
+    (tmp_path / "tiny.toml").write_text(
+        'name = "tiny"\nproblem = "nao-walk"\nseeds = 2\n'
+        '[problem_settings]\nbackend = "ode"\nduration = 6.0\n'
+        '[[optimizers]]\nname = "random"\nbudget = 3\n'
     )
-
-
-def test_every_run_has_its_convergence_gait_and_transfer_rows():
-    runs = read(OUT / "runs.csv")
-    assert runs
-    gaits = {row["run"] for row in read(OUT / "gaits.csv")}
-    transfer = {row["run"]: row for row in read(OUT / "transfer.csv")}
-    for run in runs:
-        curve = read(OUT / "convergence" / f"{run['run']}.csv")
-        assert int(curve[-1]["evaluations"]) == int(run["evaluations"])
-        assert curve[-1]["best_so_far"] == run["best_fitness"]
-        bests = [float(row["best_so_far"]) for row in curve]
-        assert bests == sorted(bests), "best so far never gets worse"
-        assert run["run"] in gaits
-        assert transfer[run["run"]]["found_fitness"] == run["best_fitness"]
-        assert transfer[run["run"]]["replay_engine"] != run["engine"]
-    assert len({run["run"] for run in runs}) == len(runs)
-
-
-def test_the_documents_medians_are_the_csv_medians():
-    text = DOC.read_text()
-    runs = read(OUT / "runs.csv")
-    for label, engine in {(r["label"], r["engine"]) for r in runs}:
-        chosen = [r for r in runs if r["label"] == label and r["engine"] == engine]
-        distance = statistics.median(float(r["distance"]) for r in chosen)
-        row = next(
-            line
-            for line in text.splitlines()
-            if line.startswith(f"| `{label}` | {'MuJoCo' if engine == 'mujoco' else 'PyBullet'} |")
-        )
-        assert f"{distance:.3f} (" in row, (label, engine, row)
+    done = metaopt_cli("compare", "tiny.toml", "--db", "t.db", cwd=tmp_path)
+    assert done.returncode == 0, done.stderr
+    table = study.rhythms_table([tmp_path / "tiny.toml"], tmp_path / "t.db").splitlines()
+    assert len(table) == 3 and table[2].startswith("| tiny | random | - | 2 |")
