@@ -63,6 +63,18 @@ class ResultTable:
             table.add_row(*(column.render(row) for column in shown))
         return table
 
+    def to_markdown(self) -> str:
+        """The terminal table as GitHub markdown (title in bold above it), to paste into a doc."""
+        shown = [column for column in self.columns if column.in_terminal]
+
+        def cells(texts: list[str]) -> str:
+            return "| " + " | ".join(t.replace("\n", " ").replace("|", "\\|") for t in texts) + " |"
+
+        lines = [f"**{self.title}**", "", cells([column.header for column in shown])]
+        lines.append("|" + "|".join("---" if i < 2 else "--:" for i in range(len(shown))) + "|")
+        lines += [cells([column.render(row) for column in shown]) for row in self.rows]
+        return "\n".join(lines) + "\n"
+
     def to_records(self) -> list[Row]:
         """Every field of every row (None where missing), for JSON."""
         return [{name: row.get(name) for name in self.fields} for row in self.rows]

@@ -251,7 +251,10 @@ _CASES = {
     "compare --transfer-csv": _option(
         [*COMPARE_BASE, "--transfer"], "--transfer-csv", st.sampled_from(BAD_FILE_PATHS)
     ),
-    "compare --format": _option(COMPARE_BASE, "--format", _not_in(["table", "csv", "json"])),
+    "compare --format": _option(
+        COMPARE_BASE, "--format", _not_in(["table", "csv", "json", "markdown"])
+    ),
+    "compare --no-run --db": _db([*COMPARE_BASE, "--no-run"]),
     "compare --workers": _option(COMPARE_BASE, "--workers", _int_outside(1, 1024)),
     "compare --db": _db(COMPARE_BASE),
     # new, list

@@ -114,6 +114,37 @@ def test_the_csv_holds_the_values_the_terminal_table_shows(tmp_path: Path) -> No
     assert {"success_rate", "evaluations_to_target", "wall_time_median"} <= set(table.fields)
 
 
+def test_markdown_shows_the_terminal_cells(tmp_path: Path) -> None:
+    experiment = _flags_experiment(optimizers=["hs", "random"], seeds=3)
+    with ExperimentStore(tmp_path / "c.db") as store:
+        _run(experiment, store)
+        table = compare(experiment, store, registry())
+    lines = table.to_markdown().splitlines()
+    shown = [column for column in table.columns if column.in_terminal]
+    assert lines[0] == f"**{table.title}**"
+    assert lines[2] == "| " + " | ".join(c.header.replace("\n", " ") for c in shown) + " |"
+    body = [line.strip("|").split(" | ") for line in lines[4:]]
+    assert [[cell.strip() for cell in row] for row in body] == [
+        [column.render(row) for column in shown] for row in table.rows
+    ]
+
+
+def test_no_run_shows_what_is_stored_and_runs_nothing(tmp_path: Path) -> None:
+    """Seed 1 of 2 is stored; --no-run shows it as 1/2 and leaves the store as it was."""
+    with ExperimentStore(tmp_path / "c.db") as store:
+        _run(_flags_experiment(seeds=1, name="half"), store)
+    flags = ("-o", "hs", "-p", "sphere", "--seeds", "2", "--budget", "200", "--set", "dim=3",
+             "--name", "half", "--db", "c.db", "--no-run")  # fmt: skip
+    done = metaopt_cli("compare", *flags, "--format", "csv", cwd=tmp_path)
+    assert done.returncode == 0, done.stderr
+    (row,) = _csv_rows(done.stdout)
+    assert (row["finished"], row["planned"]) == (1, 2)
+    with ExperimentStore(tmp_path / "c.db") as store:
+        assert len(store.runs()) == 1
+    missing = metaopt_cli("compare", *flags[:-3], "--db", "none.db", "--no-run", cwd=tmp_path)
+    assert missing.returncode == 2 and not (tmp_path / "none.db").exists()
+
+
 def test_success_rate_and_evaluations_to_target_on_a_constructed_case(tmp_path: Path) -> None:
     """Minimized, target 1: seed 1 reaches it at its 3rd evaluation, seed 2 at its 2nd, seed 3
     never; so success 2/3 and a median of 2.5 evaluations over the successful seeds."""

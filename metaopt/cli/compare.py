@@ -17,9 +17,10 @@ from metaopt.cli.common import (
     console,
     db_option,
     errors,
+    require_store,
     scheduling_options,
 )
-from metaopt.cli.output import check_output_file, format_option, written_whole
+from metaopt.cli.output import OUTPUT_FORMATS, check_output_file, written_whole
 from metaopt.comparison import compare as compare_cells
 from metaopt.errors import ConfigError
 from metaopt.experiment import Experiment, experiment_from_flags, load_experiment
@@ -88,7 +89,20 @@ MAX_SEEDS = 10_000
     default=None,
     help="Write the transfer table as CSV (with --transfer).",
 )
-@format_option
+@click.option(
+    "--format",
+    "fmt",
+    type=click.Choice((*OUTPUT_FORMATS, "markdown")),
+    default="table",
+    show_default=True,
+    help="table for reading; markdown to paste into a document; csv or json (every field, "
+    "full precision) for programs.",
+)
+@click.option(
+    "--no-run",
+    is_flag=True,
+    help="Run nothing: show what the store holds for the experiment (e.g. while it runs).",
+)
 @scheduling_options
 @db_option
 def compare(
@@ -104,6 +118,7 @@ def compare(
     csv_path: str | None,
     transfer_csv_path: str | None,
     fmt: str,
+    no_run: bool,
     executor: str | None,
     workers: int | None,
     scheduler: str | None,
@@ -122,8 +137,13 @@ def compare(
     experiment = _experiment(experiment_file, flags, plugins)
     if transfer_csv_path is not None and not transfer:
         raise ConfigError("--transfer-csv writes the transfer table: add --transfer")
-    shown = console if fmt == "table" else errors  # stdout stays pure CSV or JSON
+    shown = console if fmt == "table" else errors  # stdout stays pure CSV, JSON or markdown
+    if no_run:
+        require_store(db_path)
     with ExperimentStore(db_path) as store:
+        if no_run:
+            _show_stored(experiment, store, plugins, csv_path, fmt, transfer, transfer_csv_path)
+            return
         try:
             done = run_experiment(
                 experiment, store, plugins,
@@ -141,10 +161,23 @@ def compare(
             f"experiment {experiment.name!r}: {counts['ran']} run(s) ran, {counts['resumed']} "
             f"resumed, {counts['skipped']} already finished (in {db_path})"
         )
-        _show(compare_cells(experiment, store, plugins), csv_path, fmt)
-        if transfer:
-            transfers = replay_on_other_engines(experiment, store, plugins)
-            _show(transfer_table(experiment, transfers, plugins), transfer_csv_path, fmt)
+        _show_stored(experiment, store, plugins, csv_path, fmt, transfer, transfer_csv_path)
+
+
+def _show_stored(
+    experiment: Experiment,
+    store: ExperimentStore,
+    plugins: Registry,
+    csv_path: str | None,
+    fmt: str,
+    transfer: bool,
+    transfer_csv_path: str | None,
+) -> None:
+    """The comparison table (and the transfer table) of what the store holds."""
+    _show(compare_cells(experiment, store, plugins), csv_path, fmt)
+    if transfer:
+        transfers = replay_on_other_engines(experiment, store, plugins)
+        _show(transfer_table(experiment, transfers, plugins), transfer_csv_path, fmt)
 
 
 def _experiment(path: str | None, flags: dict, plugins: Registry) -> Experiment:
@@ -173,6 +206,8 @@ def _show(table: ResultTable, csv_path: str | None, fmt: str) -> None:
     """The table on stdout in the format asked for, and as CSV into csv_path if given."""
     if fmt == "table":
         console.print(table.to_rich())
+    elif fmt == "markdown":
+        sys.stdout.write(table.to_markdown())
     elif fmt == "csv":
         table.write_csv(sys.stdout)
     else:
