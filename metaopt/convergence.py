@@ -79,12 +79,22 @@ class Band:
 def best_so_far_band(curves: list[Convergence]) -> Band:
     """Quartiles at each evaluation of the runs' best so far, up to the shortest run's end
     (runs still without a success at an evaluation are left out there)."""
-    length = min(len(curve.best) for curve in curves)
-    table = np.array([curve.best[:length] for curve in curves])
+    return _band([curve.best for curve in curves])
+
+
+def mean_band(curves: list[Convergence]) -> Band:
+    """Quartiles at each evaluation of the runs' trailing mean fitness (the paper's "average
+    fitness" curve of Figs. 4 and 5), up to the shortest run's end."""
+    return _band([curve.mean for curve in curves])
+
+
+def _band(series: list[np.ndarray]) -> Band:
+    length = min(len(values) for values in series)
+    table = np.array([values[:length] for values in series])
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", RuntimeWarning)  # all-NaN columns: NaN, as wanted
         lower, median, upper = np.nanpercentile(table, [25, 50, 75], axis=0)
-    return Band(np.arange(1, length + 1), lower, median, upper, len(curves))
+    return Band(np.arange(1, length + 1), lower, median, upper, len(series))
 
 
 def group_runs(runs: list[RunRecord], group_by: str) -> dict[str, list[RunRecord]]:

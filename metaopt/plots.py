@@ -66,8 +66,10 @@ def convergence_figure(curves: Convergence, title: str, optimum: float | None = 
     return figure
 
 
-def bands_figure(bands: dict[str, Band], maximize: bool, title: str) -> Figure:
-    """Per label, the median best so far over runs with its interquartile band."""
+def bands_figure(
+    bands: dict[str, Band], maximize: bool, title: str, quantity: str = "best so far"
+) -> Figure:
+    """Per label, the median of ``quantity`` over runs with its interquartile band."""
     figure = Figure(figsize=(6.4, 4.2), layout="constrained")
     ax = figure.subplots()
     for label, band in bands.items():
@@ -82,7 +84,7 @@ def bands_figure(bands: dict[str, Band], maximize: bool, title: str) -> Figure:
     else:
         _focus(ax, curves)
     ax.set_xlabel("evaluations")
-    ax.set_ylabel(f"best so far, {fitness_label(maximize)}")
+    ax.set_ylabel(f"{quantity}, {fitness_label(maximize)}")
     scale = "log y axis" if logarithmic else f"y axis: from {FOCUS_FROM:.0%} of the run on"
     ax.set_title(
         f"{title}\nmedian over runs, band: 25th to 75th percentile ({scale})",

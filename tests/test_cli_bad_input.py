@@ -233,6 +233,11 @@ _CASES = {
     "report --out": _option(["report", "1"], "--out", st.sampled_from(BAD_FOLDER_PATHS)),
     "report --group-by": _option(["report", "1"], "--group-by", _not_in(["setup", "optimizer"])),
     "report --db": _db(["report", "1"]),
+    "report --experiment": _option(
+        ["report"],
+        "--experiment",
+        st.sampled_from([FOLDER, FOREIGN_TEXT, "missing.toml", "bad.toml"]),
+    ),
     # compare
     "compare FILE": _argument(
         ["compare"], st.sampled_from([FOLDER, FOREIGN_TEXT, "missing.toml", "bad.toml"])

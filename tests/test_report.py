@@ -164,3 +164,72 @@ def test_a_minimized_fitness_spanning_decades_is_drawn_on_log_axes(tmp_path):
     flat = convergence_figure(convergence(np.linspace(5.0, 1.0, 50), False), "flat")
     rising = convergence_figure(convergence(np.logspace(-3, 3, 50), True), "rising", 0.0)
     assert {ax.get_yscale() for ax in (*flat.axes, *rising.axes)} == {"linear"}
+
+
+EXPERIMENT = """name = "tiny"
+problem = "sphere"
+seeds = 3
+[problem_settings]
+dim = [2, 3]
+[[optimizers]]
+name = "hs"
+budget = 60
+[[optimizers]]
+name = "random"
+budget = 60
+"""
+
+
+def test_experiment_report_draws_each_setting_from_the_stored_runs(tmp_path):
+    from metaopt.experiment import load_experiment
+    from metaopt.experiment_store import ExperimentStore
+    from tests.conftest import metaopt_cli
+
+    (tmp_path / "tiny.toml").write_text(EXPERIMENT)
+    assert metaopt_cli("compare", "tiny.toml", "--db", "e.db", cwd=tmp_path).returncode == 0
+    done = metaopt_cli("report", "--experiment", "tiny.toml", "--db", "e.db", cwd=tmp_path)
+    assert done.returncode == 0, done.stderr
+    out = tmp_path / "report-tiny"
+    for folder in ("dim-2", "dim-3"):
+        stems = {p.stem for p in (out / folder).glob("*.png")}
+        assert stems == {"convergence", "mean_fitness", "best_convergence"}
+    index = (out / "index.md").read_text()
+    assert "## dim=2" in index and "(dim-3/mean_fitness.png)" in index
+
+    experiment = load_experiment(tmp_path / "tiny.toml", registry())
+    with ExperimentStore(tmp_path / "e.db") as store:
+        from metaopt.report import experiment_figures
+
+        (first, second) = experiment_figures(store, experiment, registry())
+        cell = experiment.cells()[0]  # hs on dim=2
+        runs = [store.member("tiny", cell.key, seed) for seed in experiment.seeds]
+        curves = [convergence([e.fitness for e in store.evaluations(r.id)], False) for r in runs]
+        best_run = min(
+            (store.member("tiny", c.key, s) for c in experiment.cells()[:2] for s in (1, 2, 3)),
+            key=lambda r: store.best_evaluation(r).fitness,
+        )
+    best_lines = _lines(first.figures.figures["convergence"])
+    np.testing.assert_allclose(best_lines["hs (3 runs)"], np.median([c.best for c in curves], 0))
+    mean_lines = _lines(first.figures.figures["mean_fitness"])
+    np.testing.assert_allclose(mean_lines["hs (3 runs)"], np.median([c.mean for c in curves], 0))
+    assert (first.setting, second.setting) == ("dim=2", "dim=3")
+    assert first.best_run.id == best_run.id
+
+
+@pytest.mark.parametrize(
+    ("args", "message"),
+    [
+        (["1", "--experiment", "tiny.toml"], "not both"),
+        ([], "not both"),
+        (["--experiment", "tiny.toml"], "no finished run"),
+    ],
+)
+def test_experiment_report_bad_input_is_one_line(tmp_path, args, message):
+    from metaopt.experiment_store import ExperimentStore
+    from tests.conftest import metaopt_cli
+
+    (tmp_path / "tiny.toml").write_text(EXPERIMENT)
+    ExperimentStore(tmp_path / "e.db").close()
+    done = metaopt_cli("report", *args, "--db", "e.db", cwd=tmp_path)
+    assert done.returncode == 2 and message in done.stderr, done.stderr
+    assert "Traceback" not in done.stderr and not (tmp_path / "report-tiny").exists()

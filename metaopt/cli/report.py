@@ -13,12 +13,21 @@ import click
 from metaopt.cli.common import db_option, require_store
 from metaopt.cli.output import check_output_folder
 from metaopt.convergence import GROUP_BY
+from metaopt.errors import ConfigError
 from metaopt.plugins import registry
 from metaopt.store import RunStore
 
 
 @click.command("report")
-@click.argument("run_ids", nargs=-1, required=True, metavar="RUN...")
+@click.argument("run_ids", nargs=-1, metavar="RUN...")
+@click.option(
+    "--experiment",
+    "experiment_file",
+    type=click.Path(dir_okay=False),
+    default=None,
+    help="Instead of runs: an experiment file run by `metaopt compare`; per problem setting, "
+    "each cell's bands over its seeds and the best run's figures.",
+)
 @click.option(
     "--out",
     "out_dir",
@@ -34,11 +43,23 @@ from metaopt.store import RunStore
     help="Several runs: one band per optimizer and parameters, or per optimizer name.",
 )
 @db_option
-def report(run_ids: tuple[str, ...], out_dir: Path | None, group_by: str, db_path: str) -> None:
+def report(
+    run_ids: tuple[str, ...],
+    experiment_file: str | None,
+    out_dir: Path | None,
+    group_by: str,
+    db_path: str,
+) -> None:
     """Draw a run's convergence and its best candidate's figures (nao-walk: joint angles,
-    drift, torso height); or, for several runs, median and quartile bands of their best so far."""
+    drift, torso height); for several runs, median and quartile bands of their best so far; for
+    an experiment (--experiment FILE), both per problem setting."""
     from metaopt.report import comparison_figures, run_figures, write_figures
 
+    if (experiment_file is None) == (not run_ids):
+        raise ConfigError("give run ids (metaopt report RUN...) or --experiment FILE, not both")
+    if experiment_file is not None:
+        _report_experiment(experiment_file, out_dir, db_path)
+        return
     default = f"report-{run_ids[0]}" if len(run_ids) == 1 else "report-compare"
     check_output_folder(out_dir or Path(default), "--out")
     require_store(db_path)
@@ -52,6 +73,26 @@ def report(run_ids: tuple[str, ...], out_dir: Path | None, group_by: str, db_pat
         click.echo(f"wrote {path}")
     if figures.note:
         click.echo(f"Note: {figures.note}.", err=True)
+
+
+def _report_experiment(path: str, out_dir: Path | None, db_path: str) -> None:
+    """`metaopt report --experiment FILE`: every setting's figures and an index.md."""
+    from metaopt.experiment import load_experiment
+    from metaopt.experiment_store import ExperimentStore
+    from metaopt.report import experiment_figures, write_experiment_figures
+
+    plugins = registry()
+    experiment = load_experiment(path, plugins)
+    target = out_dir or Path(f"report-{experiment.name}")
+    check_output_folder(target, "--out")
+    require_store(db_path)
+    with ExperimentStore(db_path) as store:
+        settings = experiment_figures(store, experiment, plugins)
+    for written in write_experiment_figures(experiment, settings, target):
+        click.echo(f"wrote {written}")
+    for found in settings:
+        if found.figures.note:
+            click.echo(f"Note ({found.setting or 'all runs'}): {found.figures.note}.", err=True)
 
 
 def write_replay_video(db_path: str, run_id: str, overrides: dict[str, Any], path: str) -> None:
