@@ -3,16 +3,21 @@ already finished, so re-running an experiment only does what is left."""
 
 from __future__ import annotations
 
+import multiprocessing
+import os
+import signal
 from collections.abc import Callable
-from concurrent.futures import Future
+from concurrent.futures import Future, ProcessPoolExecutor, as_completed
 from contextlib import AbstractContextManager
 from dataclasses import asdict, dataclass
+from multiprocessing.synchronize import Event as EventType
+from pathlib import Path
 
 from metaopt.errors import ConfigError
 from metaopt.executors import EvaluationTask, Executor
 from metaopt.experiment import Cell, Experiment
 from metaopt.experiment_store import ExperimentStore
-from metaopt.plugins import Registry
+from metaopt.plugins import Registry, registry
 from metaopt.run_loop import Progress, RunSpec, resume, run
 from metaopt.store import RunRecord
 
@@ -61,38 +66,138 @@ def run_experiment(
     A stored run whose definition differs from the experiment's (the file was edited under
     the same name) is a ConfigError rather than a silent mix. RunInterrupted propagates.
     """
-    problem_info = plugins.problem(experiment.problem)
-    cells = experiment.cells()
-    total, done = len(cells) * len(experiment.seeds), []
+    members = [(cell, seed) for cell in experiment.cells() for seed in experiment.seeds]
+    done: list[CellSeed] = []
     executor: Executor | None = None
     try:
-        for cell in cells:
-            optimizer_info = plugins.optimizer(cell.optimizer.name)
-            for seed in experiment.seeds:
-                record = store.member(experiment.name, cell.key, seed)
-                if record is not None:
-                    _check_same(record, experiment.spec(cell, seed), experiment.name, cell, seed)
-                if record is not None and record.status == "finished":
-                    done.append(CellSeed(cell, seed, record.id, "skipped"))
-                    continue
-                executor = executor or make_executor()
-                lent = _KeptOpen(executor)
-                with watch(f"[{len(done) + 1}/{total}] {_describe(cell, seed)}") as progress:
-                    if record is None:
-                        with store.joining(experiment.name, cell.key, seed):
-                            spec = experiment.spec(cell, seed)
-                            result = run(spec, optimizer_info, problem_info, store, progress, lent)
-                        action = "ran"
-                    else:
-                        result = resume(
-                            record.id, store, optimizer_info, problem_info, progress, lent
-                        )
-                        action = "resumed"
-                done.append(CellSeed(cell, seed, result.run_id, action))
+        for cell, seed in members:
+            finished = _finished_member(experiment, store, cell, seed)
+            if finished is not None:
+                done.append(finished)
+                continue
+            executor = executor or make_executor()
+            label = f"[{len(done) + 1}/{len(members)}] {_describe(cell, seed)}"
+            with watch(label) as progress:
+                done.append(
+                    _run_member(
+                        experiment, store, plugins, cell, seed, _KeptOpen(executor), progress
+                    )
+                )
     finally:
         if executor is not None:
             executor.shutdown()
     return done
+
+
+def run_experiment_in_parallel(
+    experiment: Experiment,
+    db_path: str | Path,
+    jobs: int,
+    finished: Callable[[CellSeed, int, int], None],
+) -> list[CellSeed]:
+    """Run what is left of ``experiment`` with ``jobs`` runs at a time, each in a process of its
+    own and serial inside, so that every run depends only on its seed and ends exactly as when
+    the runs go one after another. ``finished(member, done, total)`` is told of each member as it
+    ends (skipped ones first).
+
+    Checks as run_experiment does before anything starts. Ctrl-C stops every run (each stores
+    what finished and is marked interrupted, to be resumed by the next compare) and raises
+    KeyboardInterrupt.
+    """
+    members = [(cell, seed) for cell in experiment.cells() for seed in experiment.seeds]
+    done: list[CellSeed] = []
+    with ExperimentStore(db_path) as store:
+        for cell, seed in members:
+            skipped = _finished_member(experiment, store, cell, seed)
+            if skipped is not None:
+                done.append(skipped)
+                finished(skipped, len(done), len(members))
+    left = [(c, s) for c, s in members if (c.key, s) not in {(d.cell.key, d.seed) for d in done}]
+    if not left:
+        return done
+    context = multiprocessing.get_context("spawn")  # no engine or SQLite state forked along
+    stop = context.Event()
+    workers = min(jobs, len(left))
+    with ProcessPoolExecutor(workers, context, _keep_stop_event, (stop,)) as pool:
+        futures = [
+            pool.submit(_run_member_in_process, experiment, str(db_path), cell, seed)
+            for cell, seed in left
+        ]
+        try:
+            for future in as_completed(futures):
+                done.append(future.result())
+                finished(done[-1], len(done), len(members))
+        except BaseException:
+            stop.set()
+            _stop_runs(pool, futures)
+            raise
+    return done
+
+
+def _stop_runs(pool: ProcessPoolExecutor, futures: list[Future]) -> None:
+    """Stop the runs under way as Ctrl-C stops one: each stores what it finished and marks
+    itself interrupted (run_loop); the runs not started are cancelled."""
+    for future in futures:
+        future.cancel()
+    # no public API lists a pool's worker processes; SIGINT is what Ctrl-C in a terminal
+    # sends them too (the whole foreground process group gets it)
+    for process in list(pool._processes.values()):
+        if process.is_alive() and process.pid is not None:
+            os.kill(process.pid, signal.SIGINT)
+    pool.shutdown(wait=True, cancel_futures=True)
+
+
+#: In a --jobs worker process: set when the comparison is being stopped.
+_stop_event: EventType | None = None
+
+
+def _keep_stop_event(stop: EventType) -> None:
+    """A --jobs worker's initializer: keep the event that says the comparison stops."""
+    global _stop_event
+    _stop_event = stop
+
+
+def _run_member_in_process(experiment: Experiment, db_path: str, cell: Cell, seed: int) -> CellSeed:
+    """One member, run (or resumed) serially in this worker process with its own store; none
+    once the comparison is stopping (a member already queued to this worker)."""
+    if _stop_event is not None and _stop_event.is_set():
+        raise KeyboardInterrupt(f"{_describe(cell, seed)}: not started, the comparison stopped")
+    with ExperimentStore(db_path) as store:
+        return _run_member(experiment, store, registry(), cell, seed, None, None)
+
+
+def _finished_member(
+    experiment: Experiment, store: ExperimentStore, cell: Cell, seed: int
+) -> CellSeed | None:
+    """The member as 'skipped' when its run finished; None when it is still to run. A stored
+    run made from another definition is a ConfigError."""
+    record = store.member(experiment.name, cell.key, seed)
+    if record is None:
+        return None
+    _check_same(record, experiment.spec(cell, seed), experiment.name, cell, seed)
+    return CellSeed(cell, seed, record.id, "skipped") if record.status == "finished" else None
+
+
+def _run_member(
+    experiment: Experiment,
+    store: ExperimentStore,
+    plugins: Registry,
+    cell: Cell,
+    seed: int,
+    executor: Executor | None,
+    progress: Progress | None,
+) -> CellSeed:
+    """Run the member, or resume its unfinished run."""
+    optimizer_info = plugins.optimizer(cell.optimizer.name)
+    problem_info = plugins.problem(experiment.problem)
+    record = store.member(experiment.name, cell.key, seed)
+    if record is None:
+        with store.joining(experiment.name, cell.key, seed):
+            spec = experiment.spec(cell, seed)
+            result = run(spec, optimizer_info, problem_info, store, progress, executor)
+        return CellSeed(cell, seed, result.run_id, "ran")
+    result = resume(record.id, store, optimizer_info, problem_info, progress, executor)
+    return CellSeed(cell, seed, result.run_id, "resumed")
 
 
 def _describe(cell: Cell, seed: int) -> str:

@@ -135,6 +135,10 @@ class RunInterrupted(KeyboardInterrupt):
         self.run_id = run_id
         self.stored = stored
 
+    def __reduce__(self) -> tuple[type, tuple[int, int]]:
+        # picklable as raised in a worker process (compare --jobs) and re-raised in the parent
+        return (type(self), (self.run_id, self.stored))
+
 
 def run(
     spec: RunSpec,

@@ -145,6 +145,29 @@ def test_no_run_shows_what_is_stored_and_runs_nothing(tmp_path: Path) -> None:
     assert missing.returncode == 2 and not (tmp_path / "none.db").exists()
 
 
+def test_jobs_run_side_by_side_and_end_as_one_after_another(tmp_path: Path) -> None:
+    """--jobs 2: every run in its own process gives the very runs a serial compare gives (same
+    evaluations, same best), a second call skips them all, and --jobs with --workers is refused."""
+    experiment = _flags_experiment(optimizers=["hs", "ga"], seeds=3, budget=150, name="jobs")
+    with ExperimentStore(tmp_path / "serial.db") as store:
+        _run(experiment, store)
+        serial = _best_fitnesses(store, experiment)
+    flags = ("-o", "hs", "-o", "ga", "-p", "sphere", "--seeds", "3", "--budget", "150",
+             "--set", "dim=3", "--name", "jobs", "--db", "jobs.db", "--jobs", "2")  # fmt: skip
+    done = metaopt_cli("compare", *flags, "--format", "csv", cwd=tmp_path)
+    assert done.returncode == 0, done.stderr
+    assert sum(line.endswith(" ran") for line in done.stderr.splitlines()) == 6
+    with ExperimentStore(tmp_path / "jobs.db") as store:
+        assert _best_fitnesses(store, experiment) == serial
+        counts = {store.evaluation_counts(r.id) for r in store.runs()}
+    assert counts == {(150, 0)}
+    again = metaopt_cli("compare", *flags, "--format", "csv", cwd=tmp_path)
+    skipped = sum(line.endswith(" skipped") for line in again.stderr.splitlines())
+    assert again.returncode == 0 and skipped == 6, again.stderr
+    both = metaopt_cli("compare", *flags, "--workers", "2", cwd=tmp_path)
+    assert both.returncode == 2 and "use one or the other" in both.stderr
+
+
 def test_success_rate_and_evaluations_to_target_on_a_constructed_case(tmp_path: Path) -> None:
     """Minimized, target 1: seed 1 reaches it at its 3rd evaluation, seed 2 at its 2nd, seed 3
     never; so success 2/3 and a median of 2.5 evaluations over the successful seeds."""
@@ -296,3 +319,37 @@ def test_transfer_needs_a_problem_with_engines(tmp_path: Path) -> None:
     experiment = _flags_experiment(seeds=1, budget=10)
     with ExperimentStore(tmp_path / "t.db") as store, pytest.raises(ConfigError, match="backend"):
         replay_on_other_engines(experiment, store, registry())
+
+
+def test_ctrl_c_stops_every_job_and_keeps_what_finished(tmp_path: Path) -> None:
+    """SIGINT to a --jobs 2 compare: exit 130 with the resume hint, the two runs under way
+    marked interrupted with their evaluations stored, the members not started never begun."""
+    import signal
+    import sqlite3
+    import subprocess
+    import sys
+    import time
+
+    command = [sys.executable, "-m", "metaopt", "compare", "-o", "hs", "-o", "random", "-p",
+               "sphere", "--seeds", "2", "--budget", "2000000", "--db", "c.db",
+               "--jobs", "2"]  # fmt: skip
+    process = subprocess.Popen(command, cwd=tmp_path, stderr=subprocess.PIPE, text=True)
+
+    def stored() -> int:
+        try:
+            with sqlite3.connect(tmp_path / "c.db") as db:
+                return db.execute("SELECT COUNT(DISTINCT run_id) FROM evaluations").fetchone()[0]
+        except sqlite3.OperationalError:
+            return 0
+
+    deadline = time.monotonic() + 60
+    while stored() < 2 and time.monotonic() < deadline:
+        time.sleep(0.1)
+    process.send_signal(signal.SIGINT)
+    _, stderr = process.communicate(timeout=60)
+    assert process.returncode == 130, stderr
+    assert "Run the same `metaopt compare` again" in stderr and "Traceback" not in stderr
+    with ExperimentStore(tmp_path / "c.db") as store:
+        runs = store.runs()
+        assert len(runs) == 2 and {run.status for run in runs} == {"interrupted"}
+        assert all(store.evaluation_counts(run.id)[0] > 0 for run in runs)

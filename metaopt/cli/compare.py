@@ -8,6 +8,7 @@ from collections import Counter
 from pathlib import Path
 
 import click
+from rich.console import Console
 
 from metaopt import display
 from metaopt.cli.common import (
@@ -24,7 +25,7 @@ from metaopt.cli.output import OUTPUT_FORMATS, check_output_file, written_whole
 from metaopt.comparison import compare as compare_cells
 from metaopt.errors import ConfigError
 from metaopt.experiment import Experiment, experiment_from_flags, load_experiment
-from metaopt.experiment_runner import run_experiment
+from metaopt.experiment_runner import CellSeed, run_experiment, run_experiment_in_parallel
 from metaopt.experiment_store import ExperimentStore
 from metaopt.plugins import Registry, registry
 from metaopt.result_table import ResultTable
@@ -99,6 +100,14 @@ MAX_SEEDS = 10_000
     "full precision) for programs.",
 )
 @click.option(
+    "--jobs",
+    type=click.IntRange(min=1, max=1024),
+    default=1,
+    show_default=True,
+    help="Runs at a time, each in a process of its own and serial inside (a run depends only "
+    "on its seed either way).",
+)
+@click.option(
     "--no-run",
     is_flag=True,
     help="Run nothing: show what the store holds for the experiment (e.g. while it runs).",
@@ -118,6 +127,7 @@ def compare(
     csv_path: str | None,
     transfer_csv_path: str | None,
     fmt: str,
+    jobs: int,
     no_run: bool,
     executor: str | None,
     workers: int | None,
@@ -127,6 +137,11 @@ def compare(
     """Run optimizers x problem settings x seeds (skipping finished runs, resuming unfinished
     ones) and compare them: an experiment file (TOML, docs/comparing.md) or -o A -o B -p P."""
     check_executor_options(executor, workers, scheduler)
+    if jobs > 1 and (executor is not None or scheduler is not None or (workers or 1) > 1):
+        raise ConfigError(
+            f"--jobs {jobs} runs whole runs side by side, each serial; --workers, --executor and "
+            "--scheduler spread the evaluations of one run: use one or the other"
+        )
     outputs = {"--csv": csv_path, "--transfer-csv": transfer_csv_path}
     for option, path in outputs.items():
         if path is not None:  # checked before any run: a bad path must not cost the runs
@@ -145,15 +160,25 @@ def compare(
             _show_stored(experiment, store, plugins, csv_path, fmt, transfer, transfer_csv_path)
             return
         try:
-            done = run_experiment(
-                experiment, store, plugins,
-                lambda: build_executor(executor, workers, scheduler),
-                lambda label: display.RichProgress(shown, label),
-            )  # fmt: skip
-        except RunInterrupted as stop:
+            if jobs > 1:
+                done = run_experiment_in_parallel(
+                    experiment, db_path, jobs, lambda member, k, n: _tell(shown, member, k, n)
+                )
+            else:
+                done = run_experiment(
+                    experiment, store, plugins,
+                    lambda: build_executor(executor, workers, scheduler),
+                    lambda label: display.RichProgress(shown, label),
+                )  # fmt: skip
+        except KeyboardInterrupt as stop:
+            where = (
+                f"run {stop.run_id} stopped with {stop.stored} evaluations stored"
+                if isinstance(stop, RunInterrupted)
+                else "the runs under way stopped with what they finished stored"
+            )
             errors.print(
-                f"Interrupted: run {stop.run_id} stopped with {stop.stored} evaluations stored "
-                f"in {db_path}. Run the same `metaopt compare` again to go on from there."
+                f"Interrupted: {where} in {db_path}. Run the same `metaopt compare` again to go "
+                "on from there."
             )
             sys.exit(130)
         counts = Counter(d.action for d in done)
@@ -162,6 +187,16 @@ def compare(
             f"resumed, {counts['skipped']} already finished (in {db_path})"
         )
         _show_stored(experiment, store, plugins, csv_path, fmt, transfer, transfer_csv_path)
+
+
+def _tell(shown: Console, member: CellSeed, done: int, total: int) -> None:
+    """A line per member of a --jobs comparison as it ends."""
+    setting = f" [{member.cell.setting}]" if member.cell.setting else ""
+    shown.print(
+        f"[{done}/{total}] {member.cell.optimizer.label}{setting} seed {member.seed}: run "
+        f"{member.run_id} {member.action}",
+        highlight=False,
+    )
 
 
 def _show_stored(
