@@ -11,7 +11,6 @@ from concurrent.futures import Future, ProcessPoolExecutor, as_completed
 from contextlib import AbstractContextManager
 from dataclasses import asdict, dataclass
 from multiprocessing.synchronize import Event as EventType
-from pathlib import Path
 
 from metaopt.errors import ConfigError
 from metaopt.executors import EvaluationTask, Executor
@@ -91,7 +90,7 @@ def run_experiment(
 
 def run_experiment_in_parallel(
     experiment: Experiment,
-    db_path: str | Path,
+    store: ExperimentStore,
     jobs: int,
     finished: Callable[[CellSeed, int, int], None],
 ) -> list[CellSeed]:
@@ -106,12 +105,13 @@ def run_experiment_in_parallel(
     """
     members = [(cell, seed) for cell in experiment.cells() for seed in experiment.seeds]
     done: list[CellSeed] = []
-    with ExperimentStore(db_path) as store:
-        for cell, seed in members:
-            skipped = _finished_member(experiment, store, cell, seed)
-            if skipped is not None:
-                done.append(skipped)
-                finished(skipped, len(done), len(members))
+    # This process keeps the one connection it has: a second one opened and closed here would
+    # drop its POSIX locks on the file while the workers write (SQLite's known hazard).
+    for cell, seed in members:
+        skipped = _finished_member(experiment, store, cell, seed)
+        if skipped is not None:
+            done.append(skipped)
+            finished(skipped, len(done), len(members))
     left = [(c, s) for c, s in members if (c.key, s) not in {(d.cell.key, d.seed) for d in done}]
     if not left:
         return done
@@ -120,7 +120,7 @@ def run_experiment_in_parallel(
     workers = min(jobs, len(left))
     with ProcessPoolExecutor(workers, context, _keep_stop_event, (stop,)) as pool:
         futures = [
-            pool.submit(_run_member_in_process, experiment, str(db_path), cell, seed)
+            pool.submit(_run_member_in_process, experiment, str(store.path), cell, seed)
             for cell, seed in left
         ]
         try:

@@ -162,7 +162,7 @@ def compare(
         try:
             if jobs > 1:
                 done = run_experiment_in_parallel(
-                    experiment, db_path, jobs, lambda member, k, n: _tell(shown, member, k, n)
+                    experiment, store, jobs, lambda member, k, n: _tell(shown, member, k, n)
                 )
             else:
                 done = run_experiment(
