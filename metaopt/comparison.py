@@ -5,7 +5,7 @@ best cell of the same problem setting."""
 
 from __future__ import annotations
 
-from collections.abc import Iterable, Sequence
+from collections.abc import Callable, Iterable, Sequence
 from dataclasses import dataclass
 
 import numpy as np
@@ -31,6 +31,9 @@ class FinishedRun:
     metrics: dict[str, float]
     #: evaluations spent until one reached the target (None: never, or no target)
     evaluations_to_target: int | None
+    #: the best single evaluation among the first ``at`` (compare's equal-budget column); None
+    #: without ``at``, for a resampled run, or when the run has fewer evaluations
+    best_at: float | None = None
 
 
 @dataclass(frozen=True)
@@ -70,7 +73,7 @@ def problem_traits(experiment: Experiment, plugins: Registry) -> ProblemTraits:
 
 
 def finished_runs(
-    experiment: Experiment, store: ExperimentStore, traits: ProblemTraits
+    experiment: Experiment, store: ExperimentStore, traits: ProblemTraits, at: int | None = None
 ) -> list[CellRuns]:
     """Every cell with the finished runs of its seeds, read from the store."""
     cells = []
@@ -79,13 +82,17 @@ def finished_runs(
         for seed in experiment.seeds:
             record = store.member(experiment.name, cell.key, seed)
             if record is not None and record.status == "finished":
-                runs.append(_finished_run(record, store, traits, experiment.target))
+                runs.append(_finished_run(record, store, traits, experiment.target, at))
         cells.append(CellRuns(cell, runs, len(experiment.seeds)))
     return cells
 
 
 def _finished_run(
-    record: RunRecord, store: ExperimentStore, traits: ProblemTraits, target: float | None
+    record: RunRecord,
+    store: ExperimentStore,
+    traits: ProblemTraits,
+    target: float | None,
+    at: int | None,
 ) -> FinishedRun:
     best = store.best_candidate(record)
     reached = None
@@ -100,7 +107,22 @@ def _finished_run(
         best_fitness=None if best is None else best.fitness,
         metrics={} if best is None else best.metrics,
         evaluations_to_target=reached,
+        best_at=None if at is None else _best_at(record, store, traits, at),
     )
+
+
+def _best_at(
+    record: RunRecord, store: ExperimentStore, traits: ProblemTraits, at: int
+) -> float | None:
+    """The best fitness among the run's first ``at`` evaluations; None for a resampled run (a
+    single sample is not what its optimizer judged) or one with fewer evaluations."""
+    if int(record.settings.get("resample", 1)) != 1:
+        return None
+    first = [e for e in store.evaluations(record.id) if e.index < at]
+    fitnesses = [e.fitness for e in first if e.fitness is not None]
+    if len(first) < at or not fitnesses:
+        return None
+    return max(fitnesses) if traits.sense is Sense.MAXIMIZE else min(fitnesses)
 
 
 def median_iqr(values: Sequence[float]) -> tuple[float | None, float | None]:
@@ -158,10 +180,14 @@ def metric_fields(name: str, values: Sequence[float], flag: bool) -> Row:
     return {f"{name}_median": median, f"{name}_iqr": iqr}
 
 
-def compare(experiment: Experiment, store: ExperimentStore, plugins: Registry) -> ResultTable:
-    """The comparison table of the experiment's cells from what the store holds."""
+def compare(
+    experiment: Experiment, store: ExperimentStore, plugins: Registry, at: int | None = None
+) -> ResultTable:
+    """The comparison table of the experiment's cells from what the store holds; with ``at``,
+    also each cell's best fitness within its first ``at`` evaluations (cells with different
+    budgets compared at an equal one)."""
     traits = problem_traits(experiment, plugins)
-    cells = finished_runs(experiment, store, traits)
+    cells = finished_runs(experiment, store, traits, at)
     all_runs = [run for cell in cells for run in cell.runs]
     metrics = shown_metrics(traits.key_metrics, (run.metrics for run in all_runs))
     flags = {m: is_flag(r.metrics[m] for r in all_runs if m in r.metrics) for m in metrics}
@@ -187,11 +213,18 @@ def compare(experiment: Experiment, store: ExperimentStore, plugins: Registry) -
         for name in metrics:
             values = [r.metrics[name] for r in cell.runs if name in r.metrics]
             row.update(metric_fields(name, values, flags[name]))
+        if at is not None:
+            row["best_at_median"], row["best_at_iqr"] = median_iqr(_values_at(cell))
         if experiment.target is not None:
             row.update(_success(cell))
         walls = [r.run.wall_time for r in cell.runs if r.run.wall_time is not None]
         row["wall_time_median"] = median_iqr(walls)[0]
         rows.append(row)
+    if at is not None:
+        header = f"best in first {at}\nmedian (IQR)"
+        columns.append(Column(header, ("best_at_median", "best_at_iqr"), "{} ({})"))
+        columns.append(Column(f"p vs best\nin first {at}", ("p_at",)))
+        _add_p_values(cells, rows, traits, ("best_at_median", "p_at"), _values_at)
     if experiment.target is not None:
         columns += [
             Column(f"success\n(target {experiment.target:g})", ("success_rate",), percent=True),
@@ -214,6 +247,10 @@ def _fitnesses(cell: CellRuns) -> list[float]:
     return [r.best_fitness for r in cell.runs if r.best_fitness is not None]
 
 
+def _values_at(cell: CellRuns) -> list[float]:
+    return [r.best_at for r in cell.runs if r.best_at is not None]
+
+
 def _success(cell: CellRuns) -> Row:
     """Success rate over finished runs; median evaluations to the target over successful ones."""
     reached = [r.evaluations_to_target for r in cell.runs if r.evaluations_to_target is not None]
@@ -223,20 +260,28 @@ def _success(cell: CellRuns) -> Row:
     }
 
 
-def _add_p_values(cells: list[CellRuns], rows: list[Row], traits: ProblemTraits) -> None:
+def _add_p_values(
+    cells: list[CellRuns],
+    rows: list[Row],
+    traits: ProblemTraits,
+    fields: tuple[str, str] = ("fitness_median", "p_value"),
+    values: Callable[[CellRuns], list[float]] = lambda cell: _fitnesses(cell),
+) -> None:
     """Within each problem setting, each cell's rank-sum p-value against the cell with the
-    best median fitness (the best cell itself gets none)."""
+    best median fitness (the best cell itself gets none); ``fields`` name the median compared
+    and the p-value written, ``values`` gives a cell's samples."""
+    median, p_value = fields
     by_setting: dict[str, list[int]] = {}
     for index, cell in enumerate(cells):
         by_setting.setdefault(cell.cell.setting, []).append(index)
     for indices in by_setting.values():
-        ranked = [i for i in indices if rows[i]["fitness_median"] is not None]
+        ranked = [i for i in indices if rows[i].get(median) is not None]
         if len(ranked) < 2:
             continue
         best = ranked[0]
         for i in ranked[1:]:
-            if traits.better(rows[i]["fitness_median"], rows[best]["fitness_median"]):
+            if traits.better(rows[i][median], rows[best][median]):
                 best = i
         for i in ranked:
             if i != best:
-                rows[i]["p_value"] = rank_sum_p(_fitnesses(cells[best]), _fitnesses(cells[i]))
+                rows[i][p_value] = rank_sum_p(values(cells[best]), values(cells[i]))

@@ -262,6 +262,7 @@ _CASES = {
     "compare --no-run --db": _db([*COMPARE_BASE, "--no-run"]),
     "compare --workers": _option(COMPARE_BASE, "--workers", _int_outside(1, 1024)),
     "compare --jobs": _option(COMPARE_BASE, "--jobs", _int_outside(1, 1024)),
+    "compare --at": _option(COMPARE_BASE, "--at", _int_outside(1, MAX_INT64)),
     "compare --db": _db(COMPARE_BASE),
     # new, list
     "new KIND": _argument(["new"], _not_in(["optimizer", "problem"]), ("my_plugin",)),

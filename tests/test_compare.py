@@ -168,6 +168,35 @@ def test_jobs_run_side_by_side_and_end_as_one_after_another(tmp_path: Path) -> N
     assert both.returncode == 2 and "use one or the other" in both.stderr
 
 
+def test_at_compares_cells_of_different_budgets_at_an_equal_one(tmp_path: Path) -> None:
+    (tmp_path / "at.toml").write_text(
+        'problem = "sphere"\nseeds = 3\n[problem_settings]\ndim = 3\n'
+        '[[optimizers]]\nname = "hs"\nbudget = 100\n'
+        '[[optimizers]]\nname = "random"\nbudget = 300\n'
+        '[[optimizers]]\nlabel = "resampled"\nname = "random"\nbudget = 300\n'
+        "settings = { resample = 3 }\n"
+    )
+    experiment = load_experiment(tmp_path / "at.toml", registry())
+    with ExperimentStore(tmp_path / "c.db") as store:
+        _run(experiment, store)
+        table = compare(experiment, store, registry(), at=100)
+        firsts = {
+            cell.optimizer.label: [
+                min(e.fitness for e in store.evaluations(run.id) if e.index < 100)
+                for run in (store.member(experiment.name, cell.key, s) for s in experiment.seeds)
+            ]
+            for cell in experiment.cells()
+        }
+    hs, plain, resampled = table.rows
+    assert hs["best_at_median"] == pytest.approx(np.median(firsts["hs"]))
+    assert plain["best_at_median"] == pytest.approx(np.median(firsts["random"]))
+    assert plain["fitness_median"] < plain["best_at_median"]  # its 200 evaluations more count
+    assert resampled["best_at_median"] is None  # a single sample is not what was judged
+    worse = plain if hs["best_at_median"] < plain["best_at_median"] else hs
+    expected = mannwhitneyu(firsts["hs"], firsts["random"], alternative="two-sided").pvalue
+    assert worse["p_at"] == pytest.approx(expected)
+
+
 def test_success_rate_and_evaluations_to_target_on_a_constructed_case(tmp_path: Path) -> None:
     """Minimized, target 1: seed 1 reaches it at its 3rd evaluation, seed 2 at its 2nd, seed 3
     never; so success 2/3 and a median of 2.5 evaluations over the successful seeds."""

@@ -108,6 +108,14 @@ MAX_SEEDS = 10_000
     "on its seed either way).",
 )
 @click.option(
+    "--at",
+    type=click.IntRange(min=1, max=MAX_INT64),
+    default=None,
+    metavar="N",
+    help="Also each cell's best fitness within its first N evaluations: cells of different "
+    "budgets compared at an equal one (runs without resampling).",
+)
+@click.option(
     "--no-run",
     is_flag=True,
     help="Run nothing: show what the store holds for the experiment (e.g. while it runs).",
@@ -128,6 +136,7 @@ def compare(
     transfer_csv_path: str | None,
     fmt: str,
     jobs: int,
+    at: int | None,
     no_run: bool,
     executor: str | None,
     workers: int | None,
@@ -157,7 +166,7 @@ def compare(
         require_store(db_path)
     with ExperimentStore(db_path) as store:
         if no_run:
-            _show_stored(experiment, store, plugins, csv_path, fmt, transfer, transfer_csv_path)
+            _show_stored(experiment, store, plugins, csv_path, fmt, at, transfer, transfer_csv_path)
             return
         try:
             if jobs > 1:
@@ -186,7 +195,7 @@ def compare(
             f"experiment {experiment.name!r}: {counts['ran']} run(s) ran, {counts['resumed']} "
             f"resumed, {counts['skipped']} already finished (in {db_path})"
         )
-        _show_stored(experiment, store, plugins, csv_path, fmt, transfer, transfer_csv_path)
+        _show_stored(experiment, store, plugins, csv_path, fmt, at, transfer, transfer_csv_path)
 
 
 def _tell(shown: Console, member: CellSeed, done: int, total: int) -> None:
@@ -205,11 +214,12 @@ def _show_stored(
     plugins: Registry,
     csv_path: str | None,
     fmt: str,
+    at: int | None,
     transfer: bool,
     transfer_csv_path: str | None,
 ) -> None:
     """The comparison table (and the transfer table) of what the store holds."""
-    _show(compare_cells(experiment, store, plugins), csv_path, fmt)
+    _show(compare_cells(experiment, store, plugins, at), csv_path, fmt)
     if transfer:
         transfers = replay_on_other_engines(experiment, store, plugins)
         _show(transfer_table(experiment, transfers, plugins), transfer_csv_path, fmt)
