@@ -4,8 +4,6 @@ already finished, so re-running an experiment only does what is left."""
 from __future__ import annotations
 
 import multiprocessing
-import os
-import signal
 from collections.abc import Callable
 from concurrent.futures import Future, ProcessPoolExecutor, as_completed
 from contextlib import AbstractContextManager
@@ -17,7 +15,7 @@ from metaopt.executors import EvaluationTask, Executor
 from metaopt.experiment import Cell, Experiment
 from metaopt.experiment_store import ExperimentStore
 from metaopt.plugins import Registry, registry
-from metaopt.run_loop import Progress, RunSpec, resume, run
+from metaopt.run_loop import Progress, RunSpec, resume, run, stop_on_sigterm
 from metaopt.store import RunRecord
 
 #: Given a label, a context manager that yields the progress observer of one run.
@@ -124,9 +122,10 @@ def run_experiment_in_parallel(
             for cell, seed in left
         ]
         try:
-            for future in as_completed(futures):
-                done.append(future.result())
-                finished(done[-1], len(done), len(members))
+            with stop_on_sigterm():  # stopped like Ctrl-C, not left with its workers running
+                for future in as_completed(futures):
+                    done.append(future.result())
+                    finished(done[-1], len(done), len(members))
         except BaseException:
             stop.set()
             _stop_runs(pool, futures)
@@ -139,11 +138,11 @@ def _stop_runs(pool: ProcessPoolExecutor, futures: list[Future]) -> None:
     itself interrupted (run_loop); the runs not started are cancelled."""
     for future in futures:
         future.cancel()
-    # no public API lists a pool's worker processes; SIGINT is what Ctrl-C in a terminal
-    # sends them too (the whole foreground process group gets it)
+    # no public API lists a pool's worker processes; SIGTERM, not SIGINT, which a process
+    # started in the background ignores (and its spawned workers with it)
     for process in list(pool._processes.values()):
-        if process.is_alive() and process.pid is not None:
-            os.kill(process.pid, signal.SIGINT)
+        if process.is_alive():
+            process.terminate()
     pool.shutdown(wait=True, cancel_futures=True)
 
 

@@ -323,7 +323,7 @@ class _Session:
         if progress is not None:
             progress.start(self.total, self.stored)
         try:
-            with _stop_on_sigterm():
+            with stop_on_sigterm():
                 if self.settings.mode == "sync":
                     self._run_sync(executor, progress)
                 else:
@@ -535,8 +535,9 @@ def _outcome_of(evaluation: EvaluationRecord) -> Outcome:
 
 
 @contextmanager
-def _stop_on_sigterm() -> Iterator[None]:
-    """Turn SIGTERM into KeyboardInterrupt while a run goes on (main thread only)."""
+def stop_on_sigterm() -> Iterator[None]:
+    """Turn SIGTERM into KeyboardInterrupt while a run (or a compare --jobs) goes on (main
+    thread only)."""
 
     def interrupt(signum: int, frame: object) -> None:
         raise KeyboardInterrupt

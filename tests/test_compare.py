@@ -350,9 +350,11 @@ def test_transfer_needs_a_problem_with_engines(tmp_path: Path) -> None:
         replay_on_other_engines(experiment, store, registry())
 
 
-def test_ctrl_c_stops_every_job_and_keeps_what_finished(tmp_path: Path) -> None:
-    """SIGINT to a --jobs 2 compare: exit 130 with the resume hint, the two runs under way
-    marked interrupted with their evaluations stored, the members not started never begun."""
+@pytest.mark.parametrize("stop", ["SIGINT", "SIGTERM"])
+def test_ctrl_c_stops_every_job_and_keeps_what_finished(tmp_path: Path, stop: str) -> None:
+    """SIGINT (Ctrl-C) or SIGTERM to a --jobs 2 compare: exit 130 with the resume hint, the two
+    runs under way marked interrupted with their evaluations stored, the members not started
+    never begun."""
     import signal
     import sqlite3
     import subprocess
@@ -374,7 +376,7 @@ def test_ctrl_c_stops_every_job_and_keeps_what_finished(tmp_path: Path) -> None:
     deadline = time.monotonic() + 60
     while stored() < 2 and time.monotonic() < deadline:
         time.sleep(0.1)
-    process.send_signal(signal.SIGINT)
+    process.send_signal(getattr(signal, stop))
     _, stderr = process.communicate(timeout=60)
     assert process.returncode == 130, stderr
     assert "Run the same `metaopt compare` again" in stderr and "Traceback" not in stderr
