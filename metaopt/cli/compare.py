@@ -205,6 +205,7 @@ def _tell(shown: Console, member: CellSeed, done: int, total: int) -> None:
         f"[{done}/{total}] {member.cell.optimizer.label}{setting} seed {member.seed}: run "
         f"{member.run_id} {member.action}",
         highlight=False,
+        markup=False,  # a setting in brackets is no rich markup
     )
 
 
