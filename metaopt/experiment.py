@@ -4,6 +4,7 @@ the plugins' declarations before anything runs."""
 
 from __future__ import annotations
 
+import dataclasses
 import itertools
 import json
 from collections.abc import Iterable
@@ -12,7 +13,7 @@ from pathlib import Path
 from typing import Any
 
 from metaopt.errors import ConfigError
-from metaopt.params import resolve, suggest
+from metaopt.params import Param, resolve, suggest
 from metaopt.plugins import Registry
 from metaopt.problem import ProblemInfo
 from metaopt.run_loop import RunSettings, RunSpec
@@ -65,6 +66,9 @@ class Experiment:
     problem_grid: dict[str, list[Any]] = field(default_factory=dict)
     #: success when a run's best fitness reaches it (sense-aware)
     target: float | None = None
+    #: part of the grid kept by `compare --only`: "optimizer" (labels) or a problem setting ->
+    #: the values kept; a cell's identity and setting text stay those of the whole grid
+    only: dict[str, tuple[Any, ...]] = field(default_factory=dict)
 
     @property
     def fixed_settings(self) -> str:
@@ -78,11 +82,19 @@ class Experiment:
         names = list(self.problem_grid)
         varying = tuple(name for name in names if len(self.problem_grid[name]) > 1)
         combinations = itertools.product(*(self.problem_grid[n] for n in names))
-        return [
+        cells = [
             Cell(optimizer, dict(zip(names, values)), varying)
             for values in combinations
             for optimizer in self.optimizers
         ]
+        return [cell for cell in cells if self._selected(cell)]
+
+    def _selected(self, cell: Cell) -> bool:
+        """Whether ``cell`` lies in the part of the grid ``only`` keeps."""
+        return all(
+            (cell.optimizer.label if name == "optimizer" else cell.problem_params[name]) in kept
+            for name, kept in self.only.items()
+        )
 
     def spec(self, cell: Cell, seed: int) -> RunSpec:
         """The run of ``cell`` with ``seed``."""
@@ -118,6 +130,54 @@ def load_experiment(path: str | Path, plugins: Registry) -> Experiment:
         raise ConfigError(f"{path}: not valid TOML: {error}") from None
     raw.setdefault("name", path.stem)
     return _checked(raw, str(path), plugins)
+
+
+def restrict(experiment: Experiment, pairs: Iterable[str], plugins: Registry) -> Experiment:
+    """The part of ``experiment`` that NAME=VALUE pairs select (`compare --only`): NAME is
+    ``optimizer`` (a label) or a problem setting of the grid; values of one name are
+    alternatives, different names must all hold. Runs keep the whole experiment's identity, so
+    a part run alone joins the same cells as the whole."""
+    wanted: dict[str, list[str]] = {}
+    for pair in pairs:
+        name, sep, text = pair.partition("=")
+        if not sep or not name.strip():
+            raise ConfigError(f"--only expects NAME=VALUE, got {pair!r} (e.g. --only backend=ode)")
+        wanted.setdefault(name.strip(), []).append(text.strip())
+    declared = {p.name: p for p in plugins.problem(experiment.problem).params}
+    accepted = ", ".join(["optimizer", *experiment.problem_grid])
+    only: dict[str, tuple[Any, ...]] = {}
+    for name, texts in wanted.items():
+        if name == "optimizer":
+            choices = [entry.label for entry in experiment.optimizers]
+        elif name in experiment.problem_grid:
+            choices = experiment.problem_grid[name]
+        else:
+            raise ConfigError(
+                f"--only {name}=...: {name!r} is not a part of experiment {experiment.name!r}'s "
+                f"grid.{suggest(name, accepted.split(', '))} Accepted: {accepted}"
+            )
+        kept = []
+        for text in texts:
+            matches = [value for value in choices if _same(name, value, text, declared)]
+            if not matches:
+                shown = ", ".join(str(value) for value in choices)
+                raise ConfigError(
+                    f"--only {name}={text}: the experiment {experiment.name!r} has no such "
+                    f"{name}; it has {shown}"
+                )
+            kept.extend(matches)
+        only[name] = tuple(kept)
+    return dataclasses.replace(experiment, only={**experiment.only, **only})
+
+
+def _same(name: str, value: Any, text: str, declared: dict[str, Param]) -> bool:
+    """Whether the grid's ``value`` of ``name`` is the one ``text`` names (numbers by value)."""
+    if name == "optimizer" or name not in declared:
+        return str(value) == text
+    try:
+        return declared[name].parse(text, "--only") == declared[name].validate(value, "--only")
+    except ConfigError:
+        return False
 
 
 def experiment_from_flags(

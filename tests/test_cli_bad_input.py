@@ -100,7 +100,7 @@ def _argument(before: list[str], values: st.SearchStrategy[str], after: tuple = 
         value = draw(values)
         names = [value, repr(value), "run id", "run ", "plugin"]
         if value.startswith("-"):  # read as short options: the first one is named
-            names.append(value[:2])
+            names += [value[:2], value[:2].encode("unicode_escape").decode()]  # as printed
         return [*before, value, *after], names
 
     return case
@@ -233,6 +233,7 @@ _CASES = {
     "report --out": _option(["report", "1"], "--out", st.sampled_from(BAD_FOLDER_PATHS)),
     "report --group-by": _option(["report", "1"], "--group-by", _not_in(["setup", "optimizer"])),
     "report --db": _db(["report", "1"]),
+    "report --only": _option(["report", "1"], "--only", st.just("backend=ode")),
     "report --experiment": _option(
         ["report"],
         "--experiment",
@@ -264,6 +265,15 @@ _CASES = {
     "compare --jobs": _option(COMPARE_BASE, "--jobs", _int_outside(1, 1024)),
     "compare --at": _option(COMPARE_BASE, "--at", _int_outside(1, MAX_INT64)),
     "compare --db": _db(COMPARE_BASE),
+    "compare --only": _option(
+        COMPARE_BASE,
+        "--only",
+        st.one_of(
+            _text().filter(lambda t: "=" not in t and not t.startswith("-")),
+            _text().filter(lambda t: t.strip() != "optimizer").map(lambda t: f"{t}=1"),
+            _text().filter(lambda t: t.strip() != "hs").map(lambda t: f"optimizer={t}"),
+        ),
+    ),
     # new, list
     "new KIND": _argument(["new"], _not_in(["optimizer", "problem"]), ("my_plugin",)),
     "new NAME": _argument(

@@ -17,7 +17,7 @@ from scipy.stats import mannwhitneyu
 from metaopt.comparison import ProblemTraits, compare
 from metaopt.errors import ConfigError
 from metaopt.executors import SerialExecutor
-from metaopt.experiment import Experiment, experiment_from_flags, load_experiment
+from metaopt.experiment import Experiment, experiment_from_flags, load_experiment, restrict
 from metaopt.experiment_runner import run_experiment
 from metaopt.experiment_store import ExperimentStore
 from metaopt.plugins import registry
@@ -310,6 +310,46 @@ def test_an_experiment_file_defines_the_grid(tmp_path: Path) -> None:
     }  # fmt: skip
     assert [row["setting"] for row in table.rows] == ["dim=2", "dim=2", "dim=4", "dim=4"]
     assert sum(row.get("p_value") is None for row in table.rows) == 2  # one best per setting
+
+
+def test_only_runs_part_of_the_grid_as_members_of_the_whole(tmp_path: Path) -> None:
+    """--only optimizer=ga --only dim=4 runs and shows that one cell; its runs are the whole
+    experiment's (the full compare skips them and its other cells are as if run together), and
+    a selection the grid does not have is one line naming it."""
+    path = tmp_path / "grid.toml"
+    path.write_text(
+        'name = "part"\nproblem = "rastrigin"\nseeds = 2\n[problem_settings]\ndim = [2, 4]\n'
+        '[[optimizers]]\nname = "hs"\nbudget = 40\n'
+        '[[optimizers]]\nname = "ga"\nbudget = 60\nparams = { population = 10 }\n'
+    )
+    experiment = load_experiment(path, registry())
+    part = restrict(experiment, ["optimizer=ga", "dim=4.0"], registry())
+    assert [(c.optimizer.label, c.setting) for c in part.cells()] == [("ga", "dim=4")]
+    done = metaopt_cli("compare", "grid.toml", "--only", "optimizer=ga", "--only", "dim=4",
+                       "--format", "csv", "--db", "part.db", cwd=tmp_path)  # fmt: skip
+    assert done.returncode == 0, done.stderr
+    assert [(r["optimizer"], r["setting"], r["finished"]) for r in _csv_rows(done.stdout)] == [
+        ("ga", "dim=4", 2)
+    ]
+    whole = metaopt_cli("compare", "grid.toml", "--db", "part.db", "--format", "csv", cwd=tmp_path)
+    assert whole.returncode == 0, whole.stderr
+    assert "6 run(s) ran, 0 resumed, 2 already finished" in whole.stderr
+    with ExperimentStore(tmp_path / "part.db") as store:
+        assert _best_fitnesses(store, part) == {"ga": [
+            store.best_evaluation(r).fitness for r in store.runs() if r.problem_params["dim"] == 4
+            and r.optimizer == "ga"
+        ]}  # fmt: skip
+    with ExperimentStore(tmp_path / "together.db") as store:
+        _run(experiment, store)
+        together = _best_fitnesses(store, restrict(experiment, ["dim=2"], registry()))
+    with ExperimentStore(tmp_path / "part.db") as store:
+        assert _best_fitnesses(store, restrict(experiment, ["dim=2"], registry())) == together
+    for bad, named in [("optimizer=cma", "hs, ga"), ("dim=3", "2, 4"), ("seed=1", "optimizer, dim"),
+                       ("dim", "NAME=VALUE")]:  # fmt: skip
+        refused = metaopt_cli("compare", "grid.toml", "--only", bad, "--db", "x.db", cwd=tmp_path)
+        lines = refused.stderr.strip().splitlines()
+        assert refused.returncode == 2 and len(lines) == 1 and named in lines[0], refused.stderr
+        assert "--only" in lines[0] and not (tmp_path / "x.db").exists()
 
 
 def _walk_experiment(tmp_path: Path) -> Experiment:

@@ -24,7 +24,7 @@ from metaopt.cli.common import (
 from metaopt.cli.output import OUTPUT_FORMATS, check_output_file, written_whole
 from metaopt.comparison import compare as compare_cells
 from metaopt.errors import ConfigError
-from metaopt.experiment import Experiment, experiment_from_flags, load_experiment
+from metaopt.experiment import Experiment, experiment_from_flags, load_experiment, restrict
 from metaopt.experiment_runner import CellSeed, run_experiment, run_experiment_in_parallel
 from metaopt.experiment_store import ExperimentStore
 from metaopt.plugins import Registry, registry
@@ -116,6 +116,13 @@ MAX_SEEDS = 10_000
     "budgets compared at an equal one (runs without resampling).",
 )
 @click.option(
+    "--only",
+    multiple=True,
+    metavar="NAME=VALUE",
+    help="Only part of the experiment's grid: optimizer=LABEL or a problem setting of the grid "
+    "(repeat; one name's values are alternatives). Its runs are the whole experiment's.",
+)
+@click.option(
     "--no-run",
     is_flag=True,
     help="Run nothing: show what the store holds for the experiment (e.g. while it runs).",
@@ -137,6 +144,7 @@ def compare(
     fmt: str,
     jobs: int,
     at: int | None,
+    only: tuple[str, ...],
     no_run: bool,
     executor: str | None,
     workers: int | None,
@@ -158,7 +166,7 @@ def compare(
     plugins = registry()
     flags = dict(optimizers=optimizers, problem=problem, seeds=seeds, budget=budget,
                  settings=settings, target=target, name=name)  # fmt: skip
-    experiment = _experiment(experiment_file, flags, plugins)
+    experiment = restrict(_experiment(experiment_file, flags, plugins), only, plugins)
     if transfer_csv_path is not None and not transfer:
         raise ConfigError("--transfer-csv writes the transfer table: add --transfer")
     shown = console if fmt == "table" else errors  # stdout stays pure CSV, JSON or markdown

@@ -29,6 +29,12 @@ from metaopt.store import RunStore
     "each cell's bands over its seeds and the best run's figures.",
 )
 @click.option(
+    "--only",
+    multiple=True,
+    metavar="NAME=VALUE",
+    help="With --experiment: only part of its grid, as `metaopt compare --only`.",
+)
+@click.option(
     "--out",
     "out_dir",
     type=click.Path(file_okay=False, path_type=Path),
@@ -46,6 +52,7 @@ from metaopt.store import RunStore
 def report(
     run_ids: tuple[str, ...],
     experiment_file: str | None,
+    only: tuple[str, ...],
     out_dir: Path | None,
     group_by: str,
     db_path: str,
@@ -58,8 +65,10 @@ def report(
     if (experiment_file is None) == (not run_ids):
         raise ConfigError("give run ids (metaopt report RUN...) or --experiment FILE, not both")
     if experiment_file is not None:
-        _report_experiment(experiment_file, out_dir, db_path)
+        _report_experiment(experiment_file, only, out_dir, db_path)
         return
+    if only:
+        raise ConfigError("--only selects part of an experiment: give --experiment FILE")
     default = f"report-{run_ids[0]}" if len(run_ids) == 1 else "report-compare"
     check_output_folder(out_dir or Path(default), "--out")
     require_store(db_path)
@@ -75,14 +84,16 @@ def report(
         click.echo(f"Note: {figures.note}.", err=True)
 
 
-def _report_experiment(path: str, out_dir: Path | None, db_path: str) -> None:
-    """`metaopt report --experiment FILE`: every setting's figures and an index.md."""
-    from metaopt.experiment import load_experiment
+def _report_experiment(
+    path: str, only: tuple[str, ...], out_dir: Path | None, db_path: str
+) -> None:
+    """`metaopt report --experiment FILE`: every (selected) setting's figures and an index.md."""
+    from metaopt.experiment import load_experiment, restrict
     from metaopt.experiment_store import ExperimentStore
     from metaopt.report import experiment_figures, write_experiment_figures
 
     plugins = registry()
-    experiment = load_experiment(path, plugins)
+    experiment = restrict(load_experiment(path, plugins), only, plugins)
     target = out_dir or Path(f"report-{experiment.name}")
     check_output_folder(target, "--out")
     require_store(db_path)
