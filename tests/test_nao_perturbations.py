@@ -17,6 +17,7 @@ from metaopt.params import resolve
 from metaopt.physics import PhysicsSettings
 from metaopt.plugins import registry
 from metaopt_problems.nao_walk.episode import (
+    FLIGHT_ALLOWED,
     EpisodeRunner,
     EpisodeSettings,
     Push,
@@ -134,6 +135,29 @@ def test_flight_is_the_share_footfalls_measures(backend: str) -> None:
     gait = SineGait(period=0.5, hip=0.3, knee=0.6)
     assert runner.run(gait).flight == footfalls(runner, gait).flight
     assert "flight" not in _runner(backend).run(gait).metrics()
+
+
+@pytest.mark.parametrize("backend", BACKENDS)
+def test_flight_penalty_costs_a_run_its_flight_above_the_allowed_share(backend: str) -> None:
+    """The same running gait (stride_both flies about a third of the time) loses exactly
+    flight_penalty x (flight - 5 %) with the penalty on, which turns the flight measurement on
+    by itself; a gait that keeps a foot down (hs_walk) loses nothing."""
+    for name, flies in (("stride_both", True), ("hs_walk", False)):
+        record = load_gait(name)
+        params = {k: v for k, v in record["problem_params"].items() if k != "friction"}
+        params.update(backend=backend, duration=7.0, lock=1.0)  # each engine's own friction
+        free, penalised = (_problem(**params, flight_penalty=p) for p in (0.0, 20.0))
+        try:
+            x = gait_vector(record)
+            plain, charged = free.evaluate(x, 0), penalised.evaluate(x, 0)
+        finally:
+            free.close()
+            penalised.close()
+        assert "flight" not in plain.metrics
+        assert charged.metrics["distance"] == plain.metrics["distance"]  # the same episode
+        excess = max(0.0, charged.metrics["flight"] - FLIGHT_ALLOWED)
+        assert (excess > 0.1) == flies, (name, charged.metrics["flight"])
+        assert charged.fitness == pytest.approx(plain.fitness - 20.0 * excess, abs=1e-12)
 
 
 def test_a_push_outside_the_walking_phase_is_refused() -> None:

@@ -31,6 +31,9 @@ FALL_PENALTY = 1.0
 #: (more than twice the paper's best walking speed of 0.44 m/s).
 FALL_PENALTY_RATE = 1.0
 FITNESS_KINDS = ("robust", "paper")
+#: Share of the walking phase a walk may spend with neither foot on the ground before
+#: flight_penalty applies (issue 16's "a walk, not a run": at most 5 %).
+FLIGHT_ALLOWED = 0.05
 #: A foot touches the ground when its normal contact force exceeds this, N (the robot weighs
 #: about 50 N).
 CONTACT_FORCE_N = 5.0
@@ -191,7 +194,9 @@ class EpisodeResult:
         return values
 
 
-def fitness(result: EpisodeResult, kind: str, duration: float) -> float:
+def fitness(
+    result: EpisodeResult, kind: str, duration: float, flight_penalty: float = 0.0
+) -> float:
     """Score an episode (to be maximized); progress is X - |Y|.
 
     robust: progress, minus FALL_PENALTY + FALL_PENALTY_RATE * (time left) after a fall.
@@ -199,14 +204,20 @@ def fitness(result: EpisodeResult, kind: str, duration: float) -> float:
     stopping on the spot at that moment.
     paper: eq. 9 as printed: progress, divided by the time left after a fall. Flawed: a fall
     with under 1 s left multiplies the score, and with negative progress falling early helps.
+    Either kind then loses flight_penalty metres per unit of flight share above FLIGHT_ALLOWED,
+    where flight was measured: a run scores below a walk of the same progress.
     """
     progress = result.distance - abs(result.drift)
     remaining = duration - result.fall_time
     if not result.fell or remaining <= 0:
-        return progress
-    if kind == "paper":
-        return progress / remaining
-    return progress - FALL_PENALTY - FALL_PENALTY_RATE * remaining
+        score = progress
+    elif kind == "paper":
+        score = progress / remaining
+    else:
+        score = progress - FALL_PENALTY - FALL_PENALTY_RATE * remaining
+    if flight_penalty and not math.isnan(result.flight):
+        score -= flight_penalty * max(0.0, result.flight - FLIGHT_ALLOWED)
+    return score
 
 
 class EpisodeRunner:

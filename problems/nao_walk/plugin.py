@@ -114,6 +114,9 @@ PARAMS = (
           "many 20 ms control steps earlier", low=0, high=50),
     Param("measure_flight", bool, False, "also measure the metric flight: the share of the "
           "walking phase after 2 s with neither foot on the ground (a contact query per step)"),
+    Param("flight_penalty", float, 0.0, "metres of fitness lost per unit of flight share "
+          "above 5 % (neither foot on the ground: a run, not a walk); > 0 measures flight; "
+          "0 = none", low=0.0, high=1000.0),
     Param("worlds", str, "none", "none, or standard: each evaluation's seed draws one cell of "
           "the standard perturbation table (docs/robustness.md) to walk in",
           choices=WORLDS),
@@ -150,6 +153,7 @@ class NaoWalk(Problem):
         push_time: float = 6.0,
         latency: int = 0,
         measure_flight: bool = False,
+        flight_penalty: float = 0.0,
         worlds: str = "none",
     ) -> None:
         #: every parameter, to build the perturbed worlds from (worlds=standard)
@@ -197,8 +201,10 @@ class NaoWalk(Problem):
         self.physics = self.physics_on[self.engines[0]]
         shove = Push(push, push_direction, push_time) if push else None
         self.episode = EpisodeSettings(
-            duration, lock, fall_height, fall_tilt, shove, latency, measure_flight
-        )
+            duration, lock, fall_height, fall_tilt, shove, latency,
+            measure_flight or flight_penalty > 0,
+        )  # fmt: skip
+        self.flight_penalty = flight_penalty
         self.noise = noise
         self.robot = nao().with_mass_scale(mass_scale) if mass_scale != 1 else nao()
         self._limits = {hinge.name: (hinge.lower, hinge.upper) for hinge in self.robot.hinges}
@@ -274,7 +280,7 @@ class NaoWalk(Problem):
 
     def _evaluate_on(self, engine: str, gait: Gait, seed: int) -> Evaluation:
         result = self.runner_on(engine).run(gait, disturbance=self.disturbance(seed, engine))
-        value = fitness(result, self.fitness_kind, self.episode.duration)
+        value = fitness(result, self.fitness_kind, self.episode.duration, self.flight_penalty)
         return Evaluation(value, result.metrics())
 
     def figures(self, x: np.ndarray, seed: int) -> dict[str, Figure]:
