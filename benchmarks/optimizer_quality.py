@@ -30,6 +30,7 @@ import os
 import random
 import subprocess
 import sys
+import threading
 import venv
 from collections.abc import Callable, Iterable
 from concurrent.futures import ThreadPoolExecutor
@@ -330,6 +331,12 @@ def peers_python(env: Path) -> Path:
     return python
 
 
+def _feed(stdin, text: str) -> None:
+    """Write a worker's tasks and close its input, so that it ends after the last."""
+    stdin.write(text)
+    stdin.close()
+
+
 def run_tasks(tasks: list[Task], python: Path, jobs: int, results: Path) -> None:
     """Run tasks on jobs worker processes of this interpreter, appending results as they come."""
     if not tasks:
@@ -342,12 +349,17 @@ def run_tasks(tasks: list[Task], python: Path, jobs: int, results: Path) -> None
             [str(python), __file__, "--worker"],
             stdin=subprocess.PIPE, stdout=subprocess.PIPE, text=True, env=env,
         )  # fmt: skip
-        process.stdin.write("".join(json.dumps(asdict(t)) + "\n" for t in chunk))
-        process.stdin.close()
+        # The tasks are fed from a thread of their own: written here before the results are
+        # read, a chunk larger than the pipes hold left the worker blocked on a full stdout and
+        # this thread on a full stdin, both for ever.
+        tasks_text = "".join(json.dumps(asdict(t)) + "\n" for t in chunk)
+        feeder = threading.Thread(target=_feed, args=(process.stdin, tasks_text))
+        feeder.start()
         with results.open("a") as out:
             for line in process.stdout:
                 out.write(line)
                 out.flush()
+        feeder.join()
         if process.wait():
             raise RuntimeError(f"a worker of {python} failed (exit {process.returncode})")
 

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import importlib.util
 import math
+import subprocess
 import sys
 from pathlib import Path
 
@@ -51,3 +52,17 @@ def test_the_report_ranks_medians_and_counts_wins(quality):
     assert "| mean rank | 1.75 | 1.25 |" in text
     assert "- hs vs mealpy-hs: better median on 0, worse on 1, of 2" in text
     assert quality.ranks([3.0, 1.0, 3.0]) == [2.5, 1.0, 2.5]
+
+
+def test_a_worker_given_more_tasks_than_its_pipes_hold_finishes_them_all(tmp_path):
+    """2,400 tiny runs: their tasks and results each overflow a pipe's 64 KiB, which deadlocked
+    the parent writing tasks against the worker writing results before the tasks were fed from
+    a thread of their own."""
+    results = tmp_path / "results.jsonl"
+    grid = ["--suites", "classic", "--dims", "2", "--budgets", "1,2,3,4", "--seeds", "100"]
+    subprocess.run(
+        [sys.executable, str(SCRIPT), *grid, "--optimizers", "random", "--jobs", "1",
+         "--results", str(results)],
+        check=True, capture_output=True, timeout=120,
+    )  # fmt: skip
+    assert len(results.read_text().splitlines()) == 6 * 4 * 100
