@@ -110,7 +110,8 @@ def run_experiment_in_parallel(
         if skipped is not None:
             done.append(skipped)
             finished(skipped, len(done), len(members))
-    left = [(c, s) for c, s in members if (c.key, s) not in {(d.cell.key, d.seed) for d in done}]
+    skipped_keys = {(d.cell.key, d.seed) for d in done}
+    left = [(c, s) for c, s in members if (c.key, s) not in skipped_keys]
     if not left:
         return done
     context = multiprocessing.get_context("spawn")  # no engine or SQLite state forked along
