@@ -10,8 +10,8 @@ from click.testing import CliRunner
 from matplotlib.image import imread
 
 from metaopt.cli.report import report
-from metaopt.convergence import convergence, group_runs
-from metaopt.plots import convergence_figure
+from metaopt.convergence import Band, convergence, group_runs
+from metaopt.plots import bands_figure, convergence_figure
 from metaopt.plugins import registry
 from metaopt.report import comparison_figures, run_figures, write_figures
 from metaopt.run_loop import RunSpec, run
@@ -138,6 +138,23 @@ def test_comparison_bands_are_median_and_quartiles_per_setup(tmp_path):
     assert {k: len(v) for k, v in by_name.items()} == {"hs": 6, "random": 3}
     paths = write_figures(figures, tmp_path / "out")
     assert imread(paths[0]).shape[:2] == (420, 640)
+
+
+@pytest.mark.parametrize("maximize", [True, False])
+def test_band_axes_follow_the_medians_and_the_better_quartile(maximize):
+    """A worse quartile still at the first random candidates' level (robots that all fall, -10)
+    runs off the axis; the medians and the better quartile stay in view from 5 % on."""
+    sign = 1.0 if maximize else -1.0
+    evaluations = np.arange(1, 101)
+    median = sign * np.linspace(0.1, 0.4, 100)
+    better = median + sign * 0.05
+    worse = np.where(evaluations < 30, -10.0 * sign, median - sign * 0.02)
+    lower, upper = (worse, better) if maximize else (better, worse)
+    figure = bands_figure({"hs": Band(evaluations, lower, median, upper, 5)}, maximize, "t")
+    low, high = figure.axes[0].get_ylim()
+    shown = np.concatenate([median[5:], better[5:]])
+    assert low <= shown.min() and shown.max() <= high
+    assert high - low < 1.2 * (shown.max() - shown.min())  # the -10 quartile is not in range
 
 
 def test_runs_of_different_problems_do_not_compare(tmp_path):
