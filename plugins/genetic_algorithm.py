@@ -357,7 +357,8 @@ PARAMS = (
         "eta_m",
         float,
         20.0,
-        "polynomial: distribution index (larger: smaller steps); two-scale: the coarse steps'",
+        "polynomial: distribution index (larger: smaller steps); two-scale: the coarse steps' "
+        "index, and the fine steps' at the start",
         low=0,
     ),
     Param(
