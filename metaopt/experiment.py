@@ -144,7 +144,7 @@ def restrict(experiment: Experiment, pairs: Iterable[str], plugins: Registry) ->
             raise ConfigError(f"--only expects NAME=VALUE, got {pair!r} (e.g. --only backend=ode)")
         wanted.setdefault(name.strip(), []).append(text.strip())
     declared = {p.name: p for p in plugins.problem(experiment.problem).params}
-    accepted = ", ".join(["optimizer", *experiment.problem_grid])
+    parts = ["optimizer", *experiment.problem_grid]
     only: dict[str, tuple[Any, ...]] = {}
     for name, texts in wanted.items():
         if name == "optimizer":
@@ -154,7 +154,7 @@ def restrict(experiment: Experiment, pairs: Iterable[str], plugins: Registry) ->
         else:
             raise ConfigError(
                 f"--only {name}=...: {name!r} is not a part of experiment {experiment.name!r}'s "
-                f"grid.{suggest(name, accepted.split(', '))} Accepted: {accepted}"
+                f"grid.{suggest(name, parts)} Accepted: {', '.join(parts)}"
             )
         kept = []
         for text in texts:

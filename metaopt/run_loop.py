@@ -209,28 +209,29 @@ def resume(
     record = store.run(run_id)
     if record.status == "finished":
         raise ConfigError(f"run {record.id} already finished; nothing to resume")
+    # A parameter a plugin declared after the run was stored takes its default, as a replay's do.
+    optimizer_params = resolve(optimizer_info.params, record.optimizer_params, optimizer_info.name)
+    problem_params = resolve(problem_info.params, record.problem_params, problem_info.name)
     spec = RunSpec(
         optimizer=record.optimizer,
         problem=record.problem,
         budget=record.budget,
         seed=record.seed,
-        optimizer_params=record.optimizer_params,
-        problem_params=record.problem_params,
+        optimizer_params=optimizer_params,
+        problem_params=problem_params,
         settings=RunSettings(**record.settings),
     )
-    problem = problem_info.factory(**record.problem_params)
+    problem = problem_info.factory(**problem_params)
     try:
-        optimizer = optimizer_info.factory(problem.space, record.seed, **record.optimizer_params)
+        optimizer = optimizer_info.factory(problem.space, record.seed, **optimizer_params)
         checkpoint = record.checkpoint or {"state": None, "told_below": 0, "told_extra": []}
         if checkpoint["state"] is not None:
             optimizer.load_state_dict(checkpoint["state"])
         store.claim(record.id)  # refused while another live process runs it
         store.mark_running(record.id)
-        session = _Session(
-            record.id, spec, optimizer, problem, problem_info, store, record.problem_params
-        )
+        session = _Session(record.id, spec, optimizer, problem, problem_info, store, problem_params)
         session.restore(record, checkpoint)
-        with adopt_problem(problem_info.factory, record.problem_params, problem):
+        with adopt_problem(problem_info.factory, problem_params, problem):
             return session.execute(executor or SerialExecutor(), progress)
     finally:
         problem.close()

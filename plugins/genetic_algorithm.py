@@ -38,11 +38,6 @@ from metaopt import (
 )
 from metaopt.space import repair_param
 
-#: two-scale mutation's defaults. Runs stored before it existed lack these parameters and resume
-#: with them, unread by the mutation they ran with (polynomial, the default then).
-ETA_M_END = 1000.0
-FINE_SHARE = 0.5
-
 Crossover = Callable[[np.ndarray, np.ndarray, np.random.Generator], tuple[np.ndarray, np.ndarray]]
 
 
@@ -145,8 +140,8 @@ class GeneticAlgorithm(Optimizer):
         survival: str,
         budget: int,
         repair: str,
-        eta_m_end: float = ETA_M_END,
-        fine_share: float = FINE_SHARE,
+        eta_m_end: float,
+        fine_share: float,
     ) -> None:
         super().__init__(space, seed)
         if elites >= population:
@@ -364,7 +359,7 @@ PARAMS = (
     Param(
         "eta_m_end",
         float,
-        ETA_M_END,
+        1000.0,
         "two-scale: the fine steps' index at the budget's end (the mean fine step shrinks "
         "exponentially from 1/(eta_m + 2) to 1/(eta_m_end + 2) of the range)",
         low=0,
@@ -372,7 +367,7 @@ PARAMS = (
     Param(
         "fine_share",
         float,
-        FINE_SHARE,
+        0.5,
         "two-scale: probability that a mutated gene takes a fine step rather than a coarse one",
         low=0,
         high=1,

@@ -165,16 +165,6 @@ def test_mutation_polynomial_runs_as_the_ga_did_before_two_scale(
     assert (found, total) == (best, asked_sum)
 
 
-def test_runs_stored_before_two_scale_existed_resume_as_they_ran():
-    """Their stored parameters lack eta_m_end and fine_share (resume passes the stored ones)."""
-    (info,) = ga.metaopt_optimizers()
-    stored = resolve(info.params, {"mutation": "polynomial"}, "ga")
-    del stored["eta_m_end"], stored["fine_share"]
-    _, asked = run(info.factory(SPHERE_10, 5, **stored), 500)
-    _, expected = run(build(SPHERE_10, 5, mutation="polynomial"), 500)
-    np.testing.assert_array_equal(np.concatenate(asked), np.concatenate(expected))
-
-
 def test_sbx_keeps_each_genes_mean_and_mixes_the_parents_genes():
     rng = np.random.default_rng(0)
     first, second = rng.normal(size=(10_000, 5)), rng.normal(size=(10_000, 5))

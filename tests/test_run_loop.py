@@ -1,12 +1,14 @@
 """The run loop: seeding, storage, sense translation, failures and interruption."""
 
+import json
+
 import numpy as np
 import pytest
 
 from metaopt import ConfigError, Evaluation, Problem, ProblemInfo, Sense, Space
 from metaopt.errors import RunFailed
 from metaopt.plugins import registry
-from metaopt.run_loop import RunSettings, RunSpec, run
+from metaopt.run_loop import RunSettings, RunSpec, resume, run
 from metaopt.store import RunStore
 
 
@@ -98,6 +100,50 @@ def test_interrupt_keeps_every_finished_evaluation(tmp_path):
         record = store.runs()[-1]
         assert record.status == "interrupted"
         assert store.evaluation_counts(record.id)[0] == 250
+
+
+def test_a_run_stored_before_a_parameter_existed_resumes_with_its_default(tmp_path):
+    """The GA's eta_m_end and fine_share came after runs were stored: an interrupted run whose
+    stored parameters lack them resumes with their defaults and ends as the run that never
+    stopped (the factory demands every declared parameter)."""
+    spec = RunSpec("ga", "sphere", 600, 4, optimizer_params={"mutation": "polynomial"},
+                   problem_params={"dim": 3})  # fmt: skip
+    plugins = registry()
+    with RunStore(tmp_path / "runs.db") as store:
+        whole = run(spec, plugins.optimizer("ga"), plugins.problem("sphere"), store)
+        with pytest.raises(KeyboardInterrupt):
+            run(spec, plugins.optimizer("ga"), _stopping_sphere(after=250), store)
+        stopped = store.runs()[-1]
+        params = {k: v for k, v in stopped.optimizer_params.items()
+                  if k not in ("eta_m_end", "fine_share")}  # fmt: skip
+        store._connection.execute(
+            "UPDATE runs SET optimizer_params = ? WHERE id = ?", (json.dumps(params), stopped.id)
+        )
+        store._connection.commit()
+        resumed = resume(stopped.id, store, plugins.optimizer("ga"), plugins.problem("sphere"))
+        fitnesses = [[e.fitness for e in store.evaluations(r)] for r in (whole.run_id, stopped.id)]
+    assert resumed.best_fitness == whole.best_fitness
+    assert fitnesses[0] == fitnesses[1]
+
+
+def _stopping_sphere(after: int) -> ProblemInfo:
+    """The sphere plugin (dim 3) whose evaluation number ``after`` is a Ctrl-C."""
+    sphere = registry().problem("sphere")
+
+    def factory(**params):
+        problem = sphere.factory(**params)
+        evaluate, calls = problem.evaluate, [0]
+
+        def stopping(x, seed):
+            calls[0] += 1
+            if calls[0] == after:
+                raise KeyboardInterrupt
+            return evaluate(x, seed)
+
+        problem.evaluate = stopping
+        return problem
+
+    return ProblemInfo(sphere.name, sphere.description, factory=factory, params=sphere.params)
 
 
 def test_bad_budget_and_parameters_are_config_errors(tmp_path):
