@@ -117,18 +117,31 @@ def minimize(
     seed: int | None = None,
     target: float | None = None,
     store: str | Path | None = None,
+    start: Sequence[float] | None = None,
+    start_spread: float = 0.05,
     **params: Any,
 ) -> Result:
     """Minimize f(x) over the box ``bounds`` with ``budget`` evaluations of f.
 
     ``params`` are the optimizer's parameters (``metaopt list``). The run stops early once a
-    fitness at or below ``target`` is found. f may raise or return NaN for a point it cannot
-    evaluate: that evaluation counts as failed and the run goes on (RunFailed, naming the first
-    error, when the first ten or all of them fail).
+    fitness at or below ``target`` is found. With ``start`` (a point inside the bounds) the
+    optimizer's random initial population is that point and points drawn within
+    ±``start_spread`` of each range around it (a warm start, metaopt.warm_start). f may raise
+    or return NaN for a point it cannot evaluate: that evaluation counts as failed and the run
+    goes on (RunFailed, naming the first error, when the first ten or all of them fail).
     With ``store`` the run is kept in that run store under the problem name
     ``python:<function name>``.
     """
-    return _optimize(f, bounds, optimizer, Sense.MINIMIZE, budget, seed, target, store, params)
+    settings = _settings(target, start, start_spread)
+    return _optimize(f, bounds, optimizer, Sense.MINIMIZE, budget, seed, settings, store, params)
+
+
+def _settings(
+    target: float | None, start: Sequence[float] | None, start_spread: float
+) -> RunSettings:
+    """minimize's and maximize's stopping target and warm start as run settings."""
+    point = None if start is None else [float(value) for value in np.ravel(start)]
+    return RunSettings(target=target, start=point, start_spread=start_spread)
 
 
 def maximize(
@@ -140,10 +153,13 @@ def maximize(
     seed: int | None = None,
     target: float | None = None,
     store: str | Path | None = None,
+    start: Sequence[float] | None = None,
+    start_spread: float = 0.05,
     **params: Any,
 ) -> Result:
     """As minimize, for the largest f(x); ``target`` stops the run at or above it."""
-    return _optimize(f, bounds, optimizer, Sense.MAXIMIZE, budget, seed, target, store, params)
+    settings = _settings(target, start, start_spread)
+    return _optimize(f, bounds, optimizer, Sense.MAXIMIZE, budget, seed, settings, store, params)
 
 
 def _optimize(
@@ -153,7 +169,7 @@ def _optimize(
     sense: Sense,
     budget: int,
     seed: int | None,
-    target: float | None,
+    settings: RunSettings,
     store: str | Path | None,
     params: dict[str, Any],
 ) -> Result:
@@ -168,7 +184,7 @@ def _optimize(
         budget=budget,
         seed=secrets.randbelow(2**31) if seed is None else seed,
         optimizer_params=params,
-        settings=RunSettings(target=target),
+        settings=settings,
     )
     with RunStore(IN_MEMORY if store is None else store) as run_store:
         result = run(spec, registry().optimizer(optimizer), problem_info, run_store)

@@ -174,14 +174,21 @@ def replay_table(replay: Replay) -> Table:
 
 def settings_text(settings: dict[str, Any]) -> str:
     """A run's scheduling settings in a few words: 'sync', 'async, resample 3 (mean), limit
-    2 s'."""
+    2 s', 'sync, started from stride_mujoco (20 points within 0.05)'."""
     parts = [settings.get("mode", "sync")]
     if settings.get("batch"):
         parts.append(f"batch {settings['batch']}")
     if settings.get("resample", 1) > 1:
         parts.append(f"resample {settings['resample']} ({settings.get('aggregate', 'mean')})")
+    if settings.get("common_seeds"):
+        parts.append("common seeds")
     if settings.get("time_limit") is not None:
         parts.append(f"limit {settings['time_limit']:g} s")
+    if settings.get("start") is not None:
+        parts.append(
+            f"started from {settings.get('start_from') or 'a given point'} "
+            f"({settings['start_points']} points within {settings['start_spread']:g})"
+        )
     return ", ".join(parts)
 
 

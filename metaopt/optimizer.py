@@ -33,6 +33,12 @@ class Optimizer(ABC):
         """How many candidates the optimizer prefers to be asked for at once."""
         return 1
 
+    @property
+    def initial_population(self) -> int:
+        """How many candidates the optimizer draws at random before it learns from any (HS: the
+        harmony memory); a warm start puts its points there (metaopt.warm_start)."""
+        return self.batch_size
+
     def budget_warning(self, candidates: int) -> str | None:
         """Why a run that tells this optimizer ``candidates`` candidates would hardly be what
         the user meant (e.g. no more than its random initial population), or None."""

@@ -20,6 +20,7 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
+from metaopt.candidates import Candidate
 from metaopt.errors import ConfigError
 from metaopt.executors import EvaluationTask, Executor, Outcome
 from metaopt.params import resolve
@@ -60,16 +61,6 @@ class PerturbationTable:
     cells: tuple[Perturbation, ...]
     metrics: tuple[str, ...]
     common: Mapping[str, Any] = field(default_factory=dict)
-
-
-@dataclass(frozen=True)
-class Candidate:
-    """What is tested: a decision vector and the problem parameters it was found with."""
-
-    label: str
-    problem: str
-    params: Mapping[str, Any]
-    x: np.ndarray
 
 
 @dataclass
@@ -224,36 +215,6 @@ def figure(
     bottom.grid(alpha=0.3, axis="y")
     bottom.set_xticks(where, cells, rotation=30, ha="right", fontsize="small")
     return fig
-
-
-def find_candidate(
-    target: str, problems: Mapping[str, ProblemInfo], db_path: str
-) -> tuple[Candidate, ProblemInfo]:
-    """``target`` as a candidate: a problem's stored candidate by name, else a run id in the
-    store at db_path, whose best evaluation is taken."""
-    for info in problems.values():
-        stored = info.stored_candidates() if info.stored_candidates else {}
-        if target in stored:
-            params = resolve(info.params, stored[target].params, info.name)
-            return Candidate(target, info.name, params, stored[target].x), info
-    from metaopt.replay import stored_best
-    from metaopt.store import RunStore
-
-    if not target.isdigit() or not Path(db_path).exists():
-        names = sorted(n for i in problems.values() if i.stored_candidates
-                       for n in i.stored_candidates())  # fmt: skip
-        where = f"a run id in {db_path}" if Path(db_path).exists() else f"no store at {db_path}"
-        raise ConfigError(
-            f"{target!r} is neither a stored candidate ({', '.join(names) or 'none'}) nor "
-            f"a run ({where})"
-        )
-    with RunStore(db_path) as store:
-        run, best = stored_best(store, target)
-    info = problems.get(run.problem)
-    if info is None:
-        raise ConfigError(f"run {run.id}'s problem {run.problem!r} is not installed")
-    params = resolve(info.params, run.problem_params, info.name)
-    return Candidate(f"run {run.id}", info.name, params, np.asarray(best.x)), info
 
 
 def select_cells(table: PerturbationTable, names: Sequence[str] | None) -> PerturbationTable:

@@ -19,7 +19,7 @@ import warnings
 from collections.abc import Iterator
 from concurrent.futures import FIRST_COMPLETED, Future, as_completed, wait
 from contextlib import contextmanager
-from dataclasses import asdict, dataclass, field
+from dataclasses import asdict, dataclass, field, replace
 from typing import Any, Protocol
 
 import numpy as np
@@ -38,8 +38,10 @@ from metaopt.params import resolve
 from metaopt.problem import Problem, ProblemInfo, Sense
 from metaopt.resampling import AGGREGATES, aggregate_fitness, aggregate_metrics
 from metaopt.seeding import CommonSeeds, EvaluationSeeds
+from metaopt.space import Space
 from metaopt.store import EvaluationRecord, RunRecord, RunStore
 from metaopt.versions import environment_versions
+from metaopt.warm_start import check_start, start_points
 
 CHECKPOINT_INTERVAL = 1.0
 #: A run whose first this many evaluations all failed stops as failed rather than spend its
@@ -75,6 +77,14 @@ class RunSettings:
     common_seeds: bool = False
     #: stop once a fitness this good is found: at or below it (minimize), at or above (maximize)
     target: float | None = None
+    #: warm start (metaopt.warm_start): the run's first start_points candidates are this point
+    #: and points drawn within ±start_spread of each range around it, in place of the
+    #: optimizer's first asks (0 points = the optimizer's initial population); None = none
+    start: list[float] | None = None
+    start_spread: float = 0.05
+    start_points: int = 0
+    #: where the start point came from (a stored candidate's name, a run), for people
+    start_from: str | None = None
 
     def check(self, budget: int) -> None:
         """ConfigError naming the bad setting."""
@@ -95,6 +105,11 @@ class RunSettings:
             raise ConfigError(f"time limit must be positive seconds, got {self.time_limit}")
         if self.target is not None and not math.isfinite(self.target):
             raise ConfigError(f"target must be a finite fitness, got {self.target}")
+        if self.start_points < 0:
+            raise ConfigError(
+                f"start points must be 0 (the optimizer's initial population) or more, "
+                f"got {self.start_points}"
+            )
 
 
 @dataclass
@@ -168,6 +183,7 @@ def run(
         unfit = optimizer.budget_warning(spec.budget // spec.settings.resample)
         if unfit is not None:
             warnings.warn(f"{optimizer_info.name}: {unfit}", SettingWarning, stacklevel=2)
+        spec = _with_start_points(spec, problem.space, optimizer)
         if spec.settings.mode == "async" and not optimizer.steady_state:
             raise ConfigError(
                 f"optimizer {optimizer_info.name!r} is generational, not steady-state: it "
@@ -191,6 +207,17 @@ def run(
             return session.execute(executor or SerialExecutor(), progress)
     finally:
         problem.close()
+
+
+def _with_start_points(spec: RunSpec, space: Space, optimizer: Optimizer) -> RunSpec:
+    """The spec with its warm start checked against the space and its number of start points
+    fixed (the optimizer's initial population when 0), so that a resume draws the same ones."""
+    settings = spec.settings
+    if settings.start is None:
+        return spec
+    check_start(space, settings.start, settings.start_spread)
+    count = settings.start_points or optimizer.initial_population
+    return replace(spec, settings=replace(settings, start_points=count))
 
 
 def resume(
@@ -291,6 +318,16 @@ class _Session:
         self.best: tuple[float, np.ndarray, dict[str, float]] | None = None
         self.reusable: dict[int, EvaluationRecord] = {}
         self.last_checkpoint = time.perf_counter()
+        settings = self.settings
+        #: the warm start's candidates, numbered from 0 (none without a warm start)
+        self.start = (
+            np.empty((0, problem.space.dim))
+            if settings.start is None
+            else start_points(
+                problem.space, settings.start, settings.start_spread, settings.start_points,
+                spec.seed,
+            )
+        )  # fmt: skip
 
     # -- resume ----------------------------------------------------------------------------
 
@@ -355,9 +392,10 @@ class _Session:
         next_index = self.told_below
         while next_index < self.total and not self.target_reached:
             count = min(batch_size, (self.total - next_index) // self.resample)
+            first = next_index // self.resample
             candidates = [
-                _Candidate(next_index // self.resample + i, x, [None] * self.resample)
-                for i, x in enumerate(self.optimizer.ask(count))
+                _Candidate(first + i, x, [None] * self.resample)
+                for i, x in enumerate(self._ask(first, count))
             ]
             futures = self._submit(executor, candidates)
             self._collect(futures, candidates)
@@ -383,7 +421,7 @@ class _Session:
                 and next_index < self.total
                 and not self.target_reached
             ):
-                x = self.optimizer.ask(1)[0]
+                x = self._ask(next_index // self.resample, 1)[0]
                 candidate = _Candidate(next_index // self.resample, x, [None] * self.resample)
                 in_flight.update(self._submit(executor, [candidate]))
                 next_index += self.resample
@@ -393,6 +431,15 @@ class _Session:
                 self._record(candidate, future.result())
                 if candidate.complete:
                     self._tell_one(candidate, progress)
+
+    def _ask(self, first: int, count: int) -> np.ndarray:
+        """Candidates number first to first + count - 1: the warm start's points while they
+        last, then the optimizer's, which is told the start points as if it had asked them."""
+        starting = self.start[first : first + count]
+        if len(starting) == count:
+            return starting
+        asked = self.optimizer.ask(count - len(starting))
+        return np.concatenate([starting, asked]) if len(starting) else asked
 
     @property
     def target_reached(self) -> bool:

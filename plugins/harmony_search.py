@@ -169,6 +169,11 @@ class HarmonySearch(Optimizer):
         )
 
     @property
+    def initial_population(self) -> int:
+        """The random harmonies that fill the memory: hms."""
+        return self.hms
+
+    @property
     def harmony_memory(self) -> np.ndarray:
         """A copy of the filled memory rows, shape (filled, dim)."""
         return self._memory[: self._filled].copy()

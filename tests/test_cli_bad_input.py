@@ -159,6 +159,19 @@ _CASES = {
         also=("time limit",),
     ),
     "run --set": _set(RUN_BASE),
+    "run --start-from": _option(
+        RUN_BASE, "--start-from", st.one_of(_RUN_ID, st.sampled_from(["hs_walk", "stride_mujoco"]))
+    ),
+    "run --start-spread": _option(
+        RUN_BASE,
+        "--start-spread",
+        st.one_of(
+            st.floats(max_value=0, exclude_max=True).map(repr),
+            st.floats(min_value=1, exclude_min=True).map(repr),
+            _text().filter(lambda t: not _is_float(t)),
+        ),
+    ),
+    "run --start-points": _option(RUN_BASE, "--start-points", _int_outside(0, None)),
     "run --executor": _option(RUN_BASE, "--executor", _unknown_name(["serial", "process", "dask"])),
     "run --workers": _option(RUN_BASE, "--workers", _int_outside(1, 1024)),
     "run --scheduler": _option(

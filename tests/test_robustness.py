@@ -11,15 +11,9 @@ import numpy as np
 import pytest
 
 from metaopt import ConfigError
+from metaopt.candidates import Candidate, find_candidate
 from metaopt.plugins import registry
-from metaopt.robustness import (
-    Candidate,
-    CellResult,
-    Perturbation,
-    find_candidate,
-    select_cells,
-    tasks,
-)
+from metaopt.robustness import CellResult, Perturbation, select_cells, tasks
 from metaopt_problems.nao_walk.robustness import STANDARD_TABLE
 from metaopt_problems.nao_walk.stored_gaits import gait_vector, load_gait
 from tests.conftest import metaopt_cli

@@ -11,6 +11,7 @@ import click
 from rich.markup import escape
 
 from metaopt import display
+from metaopt.candidates import find_start
 from metaopt.cli.common import (
     MAX_INT64,
     build_executor,
@@ -199,6 +200,27 @@ def list_plugins(name: str | None) -> None:
     default=None,
     help="Stop once a fitness this good is found (at or below it; at or above when maximizing).",
 )
+@click.option(
+    "--start-from",
+    "start_from",
+    default=None,
+    metavar="RUN|NAME",
+    help="Warm start: the first candidates are this run's best (in --db) or stored candidate "
+    "and points around it, instead of the optimizer's random ones.",
+)
+@click.option(
+    "--start-spread",
+    type=click.FloatRange(min=0, max=1),
+    default=0.05,
+    show_default=True,
+    help="Warm start: half-width of the box the points are drawn in, share of each range.",
+)
+@click.option(
+    "--start-points",
+    type=click.IntRange(min=0),
+    default=0,
+    help="Warm start: how many candidates start there [the optimizer's initial population].",
+)
 @scheduling_options
 @db_option
 def run_command(
@@ -214,6 +236,9 @@ def run_command(
     common_seeds: bool,
     time_limit: float | None,
     target: float | None,
+    start_from: str | None,
+    start_spread: float,
+    start_points: int,
     executor: str | None,
     workers: int | None,
     scheduler: str | None,
@@ -225,6 +250,9 @@ def run_command(
     optimizer_info = plugins.optimizer(optimizer_name)
     problem_info = plugins.problem(problem_name)
     optimizer_params, problem_params = split_settings(settings, optimizer_info, problem_info)
+    start = None
+    if start_from is not None:
+        start = find_start(start_from, problem_info, problem_params, plugins.problems, db_path)
     spec = RunSpec(
         optimizer=optimizer_name,
         problem=problem_name,
@@ -233,7 +261,17 @@ def run_command(
         optimizer_params=optimizer_params,
         problem_params=problem_params,
         settings=RunSettings(
-            mode, batch, resample, aggregate, time_limit, common_seeds=common_seeds, target=target
+            mode,
+            batch,
+            resample,
+            aggregate,
+            time_limit,
+            common_seeds=common_seeds,
+            target=target,
+            start=None if start is None else [float(value) for value in start.x],
+            start_spread=start_spread,
+            start_points=start_points,
+            start_from=None if start is None else start.label,
         ),
     )
     spec.settings.check(spec.budget)

@@ -8,6 +8,7 @@ from pathlib import Path
 import click
 
 from metaopt import display, robustness
+from metaopt.candidates import Candidate, find_candidate
 from metaopt.cli.common import (
     MAX_INT64,
     build_executor,
@@ -78,11 +79,11 @@ def robustness_command(
     if figure_path is not None:
         check_output_file(str(figure_path), "--figure", suffix=".png")
     plugins = registry()
-    candidate, info = robustness.find_candidate(target, plugins.problems, db_path)
+    candidate, info = find_candidate(target, plugins.problems, db_path)
     if info.perturbations is None:
         raise ConfigError(f"problem {info.name!r} has no perturbation table")
     changes = parse_problem_settings(settings, info)
-    candidate = robustness.Candidate(
+    candidate = Candidate(
         candidate.label, candidate.problem, {**candidate.params, **changes}, candidate.x
     )
     names = engine_names(engines) if engines is not None else tuple(plugins.physics_backends)

@@ -1,0 +1,90 @@
+"""Finding a candidate by name: a problem's stored candidate (e.g. a nao-walk gait) or a run's
+best, for the commands that test one (robustness) or start from one (run --start-from)."""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from metaopt.errors import ConfigError
+from metaopt.params import resolve
+from metaopt.problem import ProblemInfo
+
+
+@dataclass(frozen=True)
+class Candidate:
+    """What is tested: a decision vector and the problem parameters it was found with."""
+
+    label: str
+    problem: str
+    params: Mapping[str, Any]
+    x: np.ndarray
+
+
+def find_candidate(
+    target: str, problems: Mapping[str, ProblemInfo], db_path: str
+) -> tuple[Candidate, ProblemInfo]:
+    """``target`` as a candidate: a problem's stored candidate by name, else a run id in the
+    store at db_path, whose best evaluation is taken."""
+    for info in problems.values():
+        stored = info.stored_candidates() if info.stored_candidates else {}
+        if target in stored:
+            params = resolve(info.params, stored[target].params, info.name)
+            return Candidate(target, info.name, params, stored[target].x), info
+    from metaopt.replay import stored_best
+    from metaopt.store import RunStore
+
+    if not target.isdigit() or not Path(db_path).exists():
+        names = sorted(n for i in problems.values() if i.stored_candidates
+                       for n in i.stored_candidates())  # fmt: skip
+        where = f"a run id in {db_path}" if Path(db_path).exists() else f"no store at {db_path}"
+        raise ConfigError(
+            f"{target!r} is neither a stored candidate ({', '.join(names) or 'none'}) nor "
+            f"a run ({where})"
+        )
+    with RunStore(db_path) as store:
+        run, best = stored_best(store, target)
+    info = problems.get(run.problem)
+    if info is None:
+        raise ConfigError(f"run {run.id}'s problem {run.problem!r} is not installed")
+    params = resolve(info.params, run.problem_params, info.name)
+    return Candidate(f"run {run.id}", info.name, params, np.asarray(best.x)), info
+
+
+def find_start(
+    target: str,
+    problem: ProblemInfo,
+    problem_params: Mapping[str, Any],
+    problems: Mapping[str, ProblemInfo],
+    db_path: str,
+) -> Candidate:
+    """``target`` (as find_candidate finds it) to start a run of ``problem`` with
+    ``problem_params`` from; ConfigError unless it is a candidate of the same variables."""
+    candidate, info = find_candidate(target, problems, db_path)
+    if info.name != problem.name:
+        raise ConfigError(
+            f"{target!r} is a candidate of {info.name!r}, not of {problem.name!r}: start from "
+            f"a run or stored candidate of {problem.name!r}"
+        )
+    names = _space_names(info, candidate.params)
+    wanted = _space_names(problem, resolve(problem.params, dict(problem_params), problem.name))
+    if names != wanted:
+        raise ConfigError(
+            f"{target!r} has the variables {', '.join(names)}; this run's problem has "
+            f"{', '.join(wanted)} (e.g. another controller): start from a candidate of the "
+            "same variables"
+        )
+    return candidate
+
+
+def _space_names(info: ProblemInfo, params: Mapping[str, Any]) -> tuple[str, ...]:
+    """The variable names of ``info``'s problem built with ``params``."""
+    problem = info.factory(**params)
+    try:
+        return problem.space.names
+    finally:
+        problem.close()

@@ -1,0 +1,51 @@
+"""Warm starts: a run's first candidates drawn around a known point (a found gait, another
+run's best) instead of the optimizer's random first ones, so a search can refine, in a harder
+setting, what an easier one found."""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+
+import numpy as np
+
+from metaopt.errors import ConfigError
+from metaopt.space import Space
+
+#: Seeds the start points' generator apart from the optimizer's (which the run seed seeds), so
+#: a warm start leaves the optimizer's own random stream as it is.
+START_STREAM = 0x5741524D
+
+
+def check_start(space: Space, point: Sequence[float], spread: float) -> None:
+    """ConfigError naming what is wrong with a start point for this space."""
+    if len(point) != space.dim:
+        raise ConfigError(
+            f"the start point has {len(point)} values but the problem has {space.dim} "
+            f"variables ({', '.join(space.names)}); start from a candidate of the same problem "
+            "and controller"
+        )
+    values = np.asarray(point, dtype=float)
+    if not space.contains(values):
+        outside = [
+            f"{name}={value:g} not in [{low:g}, {high:g}]"
+            for name, value, low, high in zip(space.names, values, space.lower, space.upper)
+            if not low <= value <= high
+        ]
+        raise ConfigError(
+            f"the start point lies outside the problem's bounds: {'; '.join(outside)}"
+        )
+    if not 0.0 <= spread <= 1.0:
+        raise ConfigError(f"start spread must be a share of each range in [0, 1], got {spread}")
+
+
+def start_points(
+    space: Space, point: Sequence[float], spread: float, count: int, seed: int
+) -> np.ndarray:
+    """``count`` candidates, shape (count, dim): the point itself, then points drawn uniformly
+    within ±spread of each variable's range around it, clipped to the bounds. The same
+    (point, spread, count, seed) always gives the same points."""
+    center = np.asarray(point, dtype=float)
+    rng = np.random.default_rng([seed, START_STREAM])
+    offsets = (2.0 * rng.random((max(count - 1, 0), space.dim)) - 1.0) * spread * space.width
+    around = space.repair(center + offsets, "clip")
+    return np.concatenate([center[None, :], around])[:count]

@@ -1,0 +1,157 @@
+"""Warm starts: a run's first candidates are a given point and points around it, in place of the
+optimizer's random ones; deterministic, resumable, and checked against the problem."""
+
+import numpy as np
+import pytest
+
+import metaopt
+from metaopt import ConfigError, Space
+from metaopt.plugins import registry
+from metaopt.run_loop import RunSettings, RunSpec, resume, run
+from metaopt.store import RunStore
+from metaopt.warm_start import start_points
+from metaopt_problems.nao_walk.stored_gaits import gait_vector, load_gait
+from tests.conftest import metaopt_cli
+from tests.test_run_loop import _stopping_sphere
+
+SPACE = Space.from_bounds([-5.0] * 4, [5.0] * 4)
+
+
+def test_start_points_are_the_point_then_a_box_around_it_inside_the_bounds() -> None:
+    point = [4.9, 0.0, -1.0, 2.0]
+    points = start_points(SPACE, point, 0.05, 50, seed=3)
+    assert points.shape == (50, 4)
+    assert points[0].tolist() == point
+    assert np.all(np.abs(points - point) <= 0.05 * 10 + 1e-12)
+    assert SPACE.contains(points) and points[:, 0].max() == 5.0  # clipped at the bound
+    assert len({row.tobytes() for row in points}) == 50
+    np.testing.assert_array_equal(points, start_points(SPACE, point, 0.05, 50, seed=3))
+    assert not np.array_equal(points, start_points(SPACE, point, 0.05, 50, seed=4))
+
+
+def _sphere_run(store, optimizer="hs", seed=1, budget=200, start=None, points=0, **params):
+    plugins = registry()
+    settings = RunSettings(start=start, start_points=points, start_spread=0.1)
+    spec = RunSpec(optimizer, "sphere", budget, seed, params, {"dim": 4}, settings)
+    return run(spec, plugins.optimizer(optimizer), plugins.problem("sphere"), store)
+
+
+@pytest.mark.parametrize(("optimizer", "params", "count"),
+                         [("hs", {}, 20), ("ga", {"population": 30}, 30)])  # fmt: skip
+def test_the_first_candidates_are_the_start_points_then_the_optimizer_learns_from_them(
+    tmp_path, optimizer, params, count
+) -> None:
+    """With no count given, the optimizer's initial population (hs: hms, ga: a generation)
+    starts at the point; the next ones are bred from it, so the search stays near it."""
+    start = [3.0, -3.0, 3.0, -3.0]
+    with RunStore(tmp_path / "runs.db") as store:
+        result = _sphere_run(store, optimizer, start=start, **params)
+        record = store.run(result.run_id)
+        xs = np.array([e.x for e in store.evaluations(result.run_id)])
+    assert record.settings["start_points"] == count  # stored resolved: a resume draws the same
+    space = Space.from_bounds([-5.12] * 4, [5.12] * 4)
+    np.testing.assert_array_equal(xs[:count], start_points(space, start, 0.1, count, seed=1))
+    # The optimizer's own candidates come from the start's neighbourhood, not the whole box:
+    # from a random first population about a third of their values would lie this near.
+    near = np.abs(xs[count : 3 * count] - start) <= 0.15 * 10.24
+    assert near.mean() > 0.85
+
+
+def test_fewer_start_points_than_the_population_leave_the_rest_random(tmp_path) -> None:
+    start = [3.0, -3.0, 3.0, -3.0]
+    with RunStore(tmp_path / "runs.db") as store:
+        result = _sphere_run(store, "ga", start=start, points=5, population=30)
+        xs = np.array([e.x for e in store.evaluations(result.run_id)])
+    assert np.all(np.abs(xs[:5] - start) <= 0.1 * 10.24 + 1e-12)
+    assert np.any(np.abs(xs[5:30] - start) > 2.0)  # the other 25 are uniform in the box
+
+
+def test_a_warm_start_is_deterministic_and_leaves_a_run_without_it_unchanged(tmp_path) -> None:
+    start = [1.0, 1.0, 1.0, 1.0]
+    with RunStore(tmp_path / "runs.db") as store:
+        runs = [_sphere_run(store, start=start), _sphere_run(store, start=start)]
+        cold = [_sphere_run(store), _sphere_run(store, start=None, points=7)]
+        stored = [[e.x.tobytes() for e in store.evaluations(r.run_id)] for r in runs + cold]
+    assert stored[0] == stored[1]
+    assert stored[2] == stored[3]  # start_points without a start changes nothing
+    assert stored[0] != stored[2]
+
+
+@pytest.mark.parametrize("after", [7, 150])  # within the start points, and after them
+def test_a_warm_started_run_resumes_as_if_never_stopped(tmp_path, after) -> None:
+    plugins = registry()
+    settings = RunSettings(start=[2.0, 2.0, 2.0], start_spread=0.2)
+    spec = RunSpec("hs", "sphere", 400, 5, {}, {"dim": 3}, settings)
+    with RunStore(tmp_path / "runs.db") as store:
+        whole = run(spec, plugins.optimizer("hs"), plugins.problem("sphere"), store)
+        with pytest.raises(KeyboardInterrupt):
+            run(spec, plugins.optimizer("hs"), _stopping_sphere(after=after), store)
+        stopped = store.runs()[-1]
+        resumed = resume(stopped.id, store, plugins.optimizer("hs"), plugins.problem("sphere"))
+        fitnesses = [[e.fitness for e in store.evaluations(r)] for r in (whole.run_id, stopped.id)]
+    assert resumed.best_fitness == whole.best_fitness
+    assert fitnesses[0] == fitnesses[1]
+
+
+def test_minimize_starts_from_a_point_and_refines_it() -> None:
+    """The warm start's use: from a point near a far minimum of a multimodal function, 300
+    evaluations refine that minimum; from random points they do not find it."""
+
+    def shifted_rastrigin(x):
+        z = np.asarray(x) - 3.0
+        return float(10 * len(z) + np.sum(z**2 - 10 * np.cos(2 * np.pi * z)))
+
+    bounds = [(-5.12, 5.12)] * 6
+    near = [3.02, 2.97, 3.01, 3.03, 2.98, 3.0]
+    warm = [metaopt.minimize(shifted_rastrigin, bounds, budget=300, seed=s, start=near).fitness
+            for s in range(3)]  # fmt: skip
+    cold = [metaopt.minimize(shifted_rastrigin, bounds, budget=300, seed=s).fitness
+            for s in range(3)]  # fmt: skip
+    assert max(warm) < shifted_rastrigin(near) < min(cold)
+
+
+def test_a_start_outside_the_bounds_or_of_another_size_is_one_clear_error() -> None:
+    with pytest.raises(ConfigError, match="outside the problem's bounds: x1=7 not in"):
+        metaopt.minimize(sum, [(-5, 5)] * 2, budget=30, start=[0.0, 7.0])
+    with pytest.raises(ConfigError, match="has 3 values but the problem has 2 variables"):
+        metaopt.minimize(sum, [(-5, 5)] * 2, budget=30, start=[0.0, 1.0, 2.0])
+    with pytest.raises(
+        ConfigError, match=r"start spread must be a share of each range in \[0, 1\]"
+    ):
+        metaopt.minimize(sum, [(-5, 5)] * 2, budget=30, start=[0.0, 1.0], start_spread=2.0)
+
+
+def test_run_start_from_a_stored_gait_evaluates_it_first(tmp_path) -> None:
+    """`metaopt run --start-from NAME`: the gait itself is the first candidate, then points
+    around it; `show` says where the run started."""
+    db = "runs.db"
+    short = ["--set", "duration=5", "--set", "lock=1", "--set", "controller=stride"]
+    result = metaopt_cli("run", "-o", "hs", "-p", "nao-walk", "--budget", "3", "--seed", "1",
+                         "--start-from", "stride_mujoco", "--start-spread", "0.02",
+                         "--set", "hms=2", *short, "--db", db, cwd=tmp_path)  # fmt: skip
+    assert result.returncode == 0, result.stderr
+    with RunStore(tmp_path / db) as store:
+        record = store.runs()[0]
+        xs = [e.x for e in store.evaluations(record.id)]
+    gait = gait_vector(load_gait("stride_mujoco"))
+    np.testing.assert_array_equal(xs[0], gait)
+    assert np.max(np.abs(xs[1] - gait)) > 0 and record.settings["start_from"] == "stride_mujoco"
+    shown = metaopt_cli("show", str(record.id), "--db", db, cwd=tmp_path)
+    assert "started from stride_mujoco (2 points within 0.02)" in shown.stdout
+
+
+def test_run_start_from_a_candidate_of_other_variables_is_one_line(tmp_path) -> None:
+    result = metaopt_cli("run", "-o", "hs", "-p", "nao-walk", "--budget", "3", "--start-from",
+                         "hs_walk", "--set", "controller=stride", cwd=tmp_path)  # fmt: skip
+    assert result.returncode == 2 and not result.stdout
+    assert result.stderr.strip().splitlines() == [
+        "Error: 'hs_walk' has the variables tau1, tau2, alpha, beta, gamma, c, w11, w12, b1, "
+        "b2; this run's problem has period, feedback, hip_bias, hip_swing, knee_bias, "
+        "knee_lift, ankle_bias, sway, sway_phase, pitch_gain, roll_gain, knee_phase, push, "
+        "push_phase (e.g. another controller): start from a candidate of the same variables"
+    ]
+    other = metaopt_cli("run", "-o", "hs", "-p", "sphere", "--budget", "3",
+                        "--start-from", "hs_walk", cwd=tmp_path)  # fmt: skip
+    assert other.returncode == 2
+    assert "is a candidate of 'nao-walk', not of 'sphere'" in other.stderr
+    assert not (tmp_path / "metaopt.db").exists()  # nothing written for a refused run
