@@ -7,6 +7,7 @@ driven only through PhysicsBackend. Frame: x forward, y left, z up; SI units, an
 
 from __future__ import annotations
 
+import importlib.metadata
 import math
 from abc import ABC, abstractmethod
 from collections.abc import Callable
@@ -343,7 +344,9 @@ class BackendInfo:
     coefficient its contact model handles (problems refuse a larger one up front; math.inf:
     unlimited friction too); ``default_friction`` the coefficient a problem uses on it unless
     told otherwise. ``unavailable``, when not empty, says in one line why the engine cannot
-    run here and how to install what it needs (it is listed, but not used).
+    run here and how to install what it needs (it is listed, but not used). ``version`` says
+    which build of the engine runs here, where that is not the version of a Python
+    distribution named like the engine (see engine_version).
     """
 
     name: str
@@ -353,6 +356,15 @@ class BackendInfo:
     max_friction: float = math.inf
     default_friction: float = 1.0
     unavailable: str = ""
+    version: Callable[[], str] | None = None
+
+
+def engine_version(info: BackendInfo) -> str:
+    """The installed engine's version: its own ``version``, else that of the Python
+    distribution named like the engine (mujoco, pybullet)."""
+    if info.version is not None:
+        return info.version()
+    return importlib.metadata.version(info.name)
 
 
 #: A robot problem's ``backend`` parameter may name several engines joined by this, to be

@@ -5,8 +5,10 @@ it says how to install it."""
 
 from __future__ import annotations
 
+import importlib.metadata
 import math
 import os
+import re
 import subprocess
 import sys
 from collections.abc import Iterator
@@ -15,7 +17,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from metaopt.physics import PhysicsBackend, PhysicsSettings
+from metaopt.physics import PhysicsBackend, PhysicsSettings, engine_version
 from metaopt.plugins import registry
 from metaopt.store import RunStore
 from metaopt_problems.nao_walk.robot import nao
@@ -203,3 +205,14 @@ def test_without_libode_the_engine_says_how_to_install_it(tmp_path: Path) -> Non
     assert lines[0].endswith("install it with: apt-get install libode8")
     with RunStore(tmp_path / "runs.db") as store:
         assert store.runs() == []
+
+
+@needs_ode
+def test_every_engine_says_which_build_runs() -> None:
+    """ODE's C API has no version call: its version is the library file the linker loaded, so
+    a stored gait's exact replay is compared only on the build it was recorded with."""
+    backends = registry().physics_backends
+    versions = {name: engine_version(backends[name]) for name in ("mujoco", "pybullet", "ode")}
+    assert re.fullmatch(r"libode\.so\.\d+(\.\d+)*", versions["ode"]), versions
+    assert versions["mujoco"] == importlib.metadata.version("mujoco")
+    assert versions["pybullet"] == importlib.metadata.version("pybullet")

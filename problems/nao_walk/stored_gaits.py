@@ -1,6 +1,7 @@
 """Gaits kept as data in gaits/*.json: found by an optimizer, with their provenance, metrics
-and claims. A claim is a statistic over noise seeds (median distance and |drift|, fall rate),
-not one chaotic trajectory."""
+and claims. A claim is a statistic over noise seeds (median distance and |drift|, fall rate,
+and for a gait searched with its flight measured the median flight share), not one chaotic
+trajectory."""
 
 from __future__ import annotations
 
@@ -17,7 +18,7 @@ from .plugin import CONTROLLER_KINDS, NaoWalk
 from .robustness import BACKGROUND_NOISE
 
 #: The engines a record's metrics cover.
-ENGINES = ("mujoco", "pybullet")
+ENGINES = ("mujoco", "pybullet", "ode")
 #: A claim's episodes: this many seeds (EvaluationSeeds(0)) at the robustness table's
 #: background noise.
 CLAIM_SEEDS = 5
@@ -94,9 +95,11 @@ def replay_over_seeds(
     record: dict, engine: str, seeds: int, noise: float, run_seed: int = 0
 ) -> list[dict]:
     """A stored gait's metrics on engine over ``seeds`` seeds (EvaluationSeeds(run_seed)) at
-    ``noise``, from one fresh problem."""
+    ``noise``, from one fresh problem, in the nominal world (a gait searched over sampled
+    worlds, ``worlds=standard``, meets the perturbations in its robustness table instead)."""
     draw = EvaluationSeeds(run_seed)
-    problem = gait_problem({**record["problem_params"], "noise": noise}, engine)
+    params = {**record["problem_params"], "noise": noise, "worlds": "none"}
+    problem = gait_problem(params, engine)
     try:
         return [dict(problem.evaluate(gait_vector(record), draw(i)).metrics) for i in range(seeds)]
     finally:
@@ -104,9 +107,13 @@ def replay_over_seeds(
 
 
 def claim_statistics(samples: list[dict]) -> dict[str, float]:
-    """What a claim bounds: the median distance and |drift| and the fall rate of episodes."""
-    return {
+    """What a claim bounds: the median distance and |drift| and the fall rate of episodes, and
+    the median flight share where the episodes measured it."""
+    stats = {
         "median_distance": summarize(samples, "distance")[0],
         "median_drift": summarize(samples, "|drift|")[0],
         "fall_rate": summarize(samples, "fell")[0],
     }
+    if all("flight" in sample for sample in samples):
+        stats["median_flight"] = summarize(samples, "flight")[0]
+    return stats

@@ -34,6 +34,13 @@ def _missing() -> str:
     return ""
 
 
+def _library_file() -> str:
+    """The ODE library file that runs (ode_binding.library_file)."""
+    from metaopt_problems.physics.ode_binding import library_file
+
+    return library_file()
+
+
 @hookimpl
 def metaopt_physics_backends() -> list[BackendInfo]:
     """Announce the ODE engine."""
@@ -46,5 +53,6 @@ def metaopt_physics_backends() -> list[BackendInfo]:
             default_substeps=DEFAULT_SUBSTEPS,
             default_friction=math.inf,
             unavailable=_missing(),
+            version=_library_file,
         )
     ]

@@ -189,6 +189,18 @@ class Ode:
 _loaded: Ode | None = None
 
 
+def library_file() -> str:
+    """The name of the file the loaded ODE library is, links resolved (e.g. libode.so.8.0.2,
+    Debian's libode8 0.16.2): which build runs, since ODE's C API has no version call."""
+    ode()
+    with open("/proc/self/maps", encoding="utf-8") as maps:
+        for line in maps:
+            path = line.split()[-1]
+            if "libode" in path.rsplit("/", 1)[-1]:
+                return os.path.basename(os.path.realpath(path))
+    return library_name()
+
+
 def ode() -> Ode:
     """The ODE library, loaded and initialised on first use (OdeUnavailable if it cannot be)."""
     global _loaded
