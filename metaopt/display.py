@@ -317,9 +317,12 @@ def reflow(text: str) -> str:
     return "\n\n".join(paragraphs)
 
 
-def robustness_table(label: str, version: str, results: Sequence, metrics: Sequence[str]) -> Table:
+def robustness_table(
+    label: str, version: str, results: Sequence, metrics: Sequence[str], totals: Sequence = ()
+) -> Table:
     """`metaopt robustness`: per perturbation and engine, each metric's median over the seeds
-    (a rate: its value), with the first metric's interquartile range."""
+    (a rate: its value), with the first metric's interquartile range; then the ``totals``
+    (per engine, over the whole table) below a line."""
     table = Table(title=f"{label}: perturbation table {version}", title_justify="left")
     table.add_column("perturbation")
     table.add_column("engine")
@@ -329,7 +332,9 @@ def robustness_table(label: str, version: str, results: Sequence, metrics: Seque
     for metric in metrics[1:]:
         table.add_column(metric if metric.startswith("fell") else f"{metric} (median)",
                          justify="right")  # fmt: skip
-    for result in results:
+    for number, result in enumerate([*results, *totals]):
+        if number == len(results):
+            table.add_section()
         median, low, high = result.summary(metrics[0])
         cells = [f"{median:.3f}", f"{low:.3f} to {high:.3f}"]
         for metric in metrics[1:]:

@@ -153,6 +153,21 @@ def evaluate(
     return list(results.values())
 
 
+#: The cell name of an engine's row over every episode of the table.
+WHOLE_TABLE = "whole table"
+
+
+def whole_table(results: Sequence[CellResult]) -> list[CellResult]:
+    """Per engine, one result over every episode of every cell (what "over the standard table"
+    means in a goal: the median over all of them, the fall rate of all of them)."""
+    pooled: dict[str, CellResult] = {}
+    for result in results:
+        row = pooled.setdefault(result.engine, CellResult(WHOLE_TABLE, result.engine, [], 0))
+        row.samples.extend(result.samples)
+        row.failed += result.failed
+    return list(pooled.values())
+
+
 CSV_COLUMNS = ("table_version", "candidate", "cell", "engine", "seeds", "failed")
 
 

@@ -1,8 +1,9 @@
 """Keep a stored run's best nao-walk gait as data: problems/nao_walk/gaits/NAME.json.
 
 The record holds the decision vector by parameter name, how it was found (the command, the
-optimizer and its parameters, seed, budget, the evaluation's index), the problem parameters it
-was found with, what it does on every physics engine (its episode re-run on each, one engine
+optimizer and its parameters, seed, budget, the candidate's number and its first evaluation's
+index and seed: a resampled run's best candidate is the best by its aggregate), the problem
+parameters it was found with, what it does on every physics engine (its episode re-run on each, one engine
 at a time), the engines' versions, and the claims tests/test_stored_gait.py checks: on each
 engine named with --claim, statistics over CLAIM_SEEDS noise seeds (stored_gaits.py): a median
 distance a little below the measured one, a median |drift| bound and the fall rate, and for a
@@ -77,7 +78,8 @@ def record(db: Path, run_id: int, command: str, description: str, claims: list[s
 
     with RunStore(db) as store:
         run = store.run(run_id)
-        best = store.best_evaluation(run)
+        # by its aggregate over its samples when the run resampled (as the optimizer saw it)
+        best = store.best_candidate(run)
     if best is None:
         raise SystemExit(f"run {run_id} has no successful evaluation")
     info = registry().problem("nao-walk")
@@ -94,6 +96,7 @@ def record(db: Path, run_id: int, command: str, description: str, claims: list[s
             "seed": run.seed,
             "budget": run.budget,
             "run_evaluation_index": best.index,
+            "run_candidate": best.number,
             "evaluation_seed": best.seed,
             "metaopt_version": run.versions.get("metaopt"),
         },

@@ -13,7 +13,7 @@ import pytest
 from metaopt import ConfigError
 from metaopt.candidates import Candidate, find_candidate
 from metaopt.plugins import registry
-from metaopt.robustness import CellResult, Perturbation, select_cells, tasks
+from metaopt.robustness import CellResult, Perturbation, select_cells, tasks, whole_table
 from metaopt_problems.nao_walk.robustness import STANDARD_TABLE
 from metaopt_problems.nao_walk.stored_gaits import gait_vector, load_gait
 from tests.conftest import metaopt_cli
@@ -72,6 +72,21 @@ def test_summaries_are_medians_quartiles_and_rates() -> None:
     assert np.isnan(result.summary("flight")[0])
 
 
+def test_the_whole_table_pools_every_cells_episodes_per_engine() -> None:
+    """A goal "over the standard table" is a statistic over all its episodes, per engine."""
+    results = [
+        CellResult("a", "e1", [{"speed": 1.0, "fell": 0.0}, {"speed": 2.0, "fell": 1.0}], 0),
+        CellResult("a", "e2", [{"speed": 9.0, "fell": 0.0}], 1),
+        CellResult("b", "e1", [{"speed": 3.0, "fell": 0.0}, {"speed": 4.0, "fell": 0.0}], 1),
+    ]
+    totals = whole_table(results)
+    assert [(t.cell, t.engine, len(t.samples), t.failed) for t in totals] == [
+        ("whole table", "e1", 4, 1), ("whole table", "e2", 1, 1)
+    ]  # fmt: skip
+    assert totals[0].summary("speed")[0] == 2.5 and totals[0].summary("fell")[0] == 0.25
+    assert [len(r.samples) for r in results] == [2, 1, 2]  # the cells are left as they were
+
+
 def test_select_cells_keeps_table_order_and_refuses_unknown_names() -> None:
     table = select_cells(STANDARD_TABLE, ["latency 1", "nominal"])
     assert [c.name for c in table.cells] == ["nominal", "latency 1"]
@@ -102,12 +117,13 @@ def test_robustness_command_end_to_end_and_deterministic(tmp_path: Path) -> None
     assert (tmp_path / "r.png").stat().st_size > 1000
     rows = _rows(tmp_path / "serial.csv")
     assert [(r["cell"], r["engine"]) for r in rows] == [
-        (cell, engine) for cell in ("nominal", "latency 1")
+        (cell, engine) for cell in ("nominal", "latency 1", "whole table")
         for engine in ("mujoco", "pybullet")
     ]  # fmt: skip
+    assert "whole table" in serial.stdout
     for row in rows:
         assert row["table_version"] == "nao-walk-1" and row["candidate"] == "hs_walk"
-        assert (row["seeds"], row["failed"]) == ("2", "0")
+        assert (row["seeds"], row["failed"]) == ("4" if row["cell"] == "whole table" else "2", "0")
         assert float(row["fell"]) in (0.0, 0.5, 1.0)
         low, median, high = (float(row[f"speed_{k}"]) for k in ("q25", "median", "q75"))
         assert low <= median <= high

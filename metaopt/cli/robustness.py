@@ -97,9 +97,12 @@ def robustness_command(
                   f"{len(names)} engines x {seeds} seeds")  # fmt: skip
     with build_executor(executor, workers, scheduler) as pool:
         results = robustness.evaluate(candidate, info, table, names, seeds, seed, pool)
-    console.print(display.robustness_table(candidate.label, table.version, results, table.metrics))
+    totals = robustness.whole_table(results)
+    console.print(
+        display.robustness_table(candidate.label, table.version, results, table.metrics, totals)
+    )
     if csv_path is not None:
-        robustness.write_csv(csv_path, candidate, table, results)
+        robustness.write_csv(csv_path, candidate, table, [*results, *totals])
         console.print(f"wrote {csv_path}")
     if figure_path is not None:
         from metaopt.plots import save_figure
