@@ -3,11 +3,12 @@
 The record holds the decision vector by parameter name, how it was found (the command, the
 optimizer and its parameters, seed, budget, the candidate's number and its first evaluation's
 index and seed: a resampled run's best candidate is the best by its aggregate), the problem
-parameters it was found with, what it does on every physics engine (its episode re-run on each, one engine
-at a time), the engines' versions, and the claims tests/test_stored_gait.py checks: on each
-engine named with --claim, statistics over CLAIM_SEEDS noise seeds (stored_gaits.py): a median
-distance a little below the measured one, a median |drift| bound and the fall rate, and for a
-gait searched with its flight measured a median flight share bound.
+parameters it was found with, what it does on every physics engine (its episode re-run on
+each, one engine at a time), the engines' versions, and the claims tests/test_stored_gait.py
+checks: on each engine named with --claim, statistics over CLAIM_SEEDS noise seeds
+(stored_gaits.py): a median distance a little below the measured one, a median |drift| bound
+and the fall rate, and for a gait searched with its flight measured a median flight share
+bound.
 
     python scripts/store_gait.py RUN --db faster-walk.db --name extended_mujoco \\
         --command "metaopt compare docs/faster-walk/mujoco.toml --workers 2" \\

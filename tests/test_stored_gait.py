@@ -113,3 +113,14 @@ def test_stored_gait_does_what_its_record_says(name: str, engine: str) -> None:
             assert stats["median_flight"] <= claim["max_median_flight"], stats
     metrics = replay_gait(gait, engine)
     _assert_equal_record(metrics, gait["metrics"][engine], engine, gait["engine_versions"][engine])
+
+
+def test_the_robust_walk_claims_every_engine_without_a_fall_and_without_running() -> None:
+    """Issue 16's gait for all engines (docs/robustness.md): claims on MuJoCo, PyBullet and
+    ODE, none with a fall, each bounding the flight share (the test above replays them)."""
+    gait = load_gait("robust_walk")
+    assert set(gait["claims"]) == set(ENGINES)
+    for claim in gait["claims"].values():
+        assert claim["max_fall_rate"] == 0 and "max_median_flight" in claim
+        assert claim["min_median_distance"] >= DISTANCE_MARGIN * 0.38 * 12
+    assert gait["problem_params"]["backend"] == "mujoco+pybullet+ode"

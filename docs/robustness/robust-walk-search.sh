@@ -1,18 +1,24 @@
 #!/bin/bash
 # The robust-walk search of docs/robustness.md (issue 16, part 4), one seed per call:
-#   bash docs/robustness/robust-walk-search.sh SEED     (about 20 minutes on 2 cores)
+#   bash docs/robustness/robust-walk-search.sh SEED     (about 25 minutes on 2 cores)
 # Stage 1: HS on MuJoCo alone, with the flight penalty (a walk, not a run), from random gaits.
 # Stage 2: HS warm-started from stage 1's best (it and 19 gaits within 5 % of each range around
-# it), scored on all three engines at once (the worst engine's fitness), each candidate in the
-# same 4 sampled worlds of the standard table (common seeds) at background noise 0.1.
+#   it), scored on all three engines at once (the worst engine's fitness), each candidate in the
+#   same 4 sampled worlds of the standard table (common seeds) at background noise 0.1.
+# Stage 3: the same from stage 2's best (within 2 %), with the agent's position loop at
+#   servo_gain 12 /s instead of 10.
+# Then the last stage's best over the whole standard table on fresh seeds.
 set -euo pipefail
 seed=${1:?usage: robust-walk-search.sh SEED}
 db=robust-walk-s$seed.db
 walk=(--set controller=stride --set flight_penalty=20)
+worlds=(--resample 4 --common-seeds --workers 2 --set backend=mujoco+pybullet+ode
+        --set worlds=standard --set noise=0.1)
 metaopt run -o hs -p nao-walk --budget 1000 --seed "$seed" "${walk[@]}" --set backend=mujoco \
     --db "$db"
-metaopt run -o hs -p nao-walk --budget 2000 --resample 4 --common-seeds --workers 2 \
-    --seed "$seed" --start-from 1 "${walk[@]}" --set backend=mujoco+pybullet+ode \
-    --set worlds=standard --set noise=0.1 --db "$db"
-metaopt robustness 2 --db "$db" --seeds 10 --workers 2 --csv "robust-walk-s$seed.csv" \
+metaopt run -o hs -p nao-walk --budget 2000 --seed "$seed" --start-from 1 "${walk[@]}" \
+    "${worlds[@]}" --db "$db"
+metaopt run -o hs -p nao-walk --budget 640 --seed "$seed" --start-from 2 --start-spread 0.02 \
+    --set servo_gain=12 "${walk[@]}" "${worlds[@]}" --db "$db"
+metaopt robustness 3 --db "$db" --seeds 10 --workers 2 --csv "robust-walk-s$seed.csv" \
     --figure "robust-walk-s$seed.png"
