@@ -29,7 +29,7 @@ def find_candidate(
     target: str, problems: Mapping[str, ProblemInfo], db_path: str
 ) -> tuple[Candidate, ProblemInfo]:
     """``target`` as a candidate: a problem's stored candidate by name, else a run id in the
-    store at db_path, whose best evaluation is taken."""
+    store at db_path, whose best candidate is taken (by its aggregate when it resampled)."""
     for info in problems.values():
         stored = info.stored_candidates() if info.stored_candidates else {}
         if target in stored:
