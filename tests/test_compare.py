@@ -404,7 +404,13 @@ def test_ctrl_c_stops_every_job_and_keeps_what_finished(tmp_path: Path, stop: st
     command = [sys.executable, "-m", "metaopt", "compare", "-o", "hs", "-o", "random", "-p",
                "sphere", "--seeds", "2", "--budget", "2000000", "--db", "c.db",
                "--jobs", "2"]  # fmt: skip
-    process = subprocess.Popen(command, cwd=tmp_path, stderr=subprocess.PIPE, text=True)
+    # A shell without job control starts background jobs with SIGINT ignored, and the ignoring
+    # is inherited (a CI step run with '&' would never see the Ctrl-C): start the compare as a
+    # terminal does, with SIGINT at its default.
+    process = subprocess.Popen(
+        command, cwd=tmp_path, stderr=subprocess.PIPE, text=True,
+        preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL),
+    )  # fmt: skip
 
     def stored() -> int:
         try:
