@@ -105,6 +105,10 @@ class RunSettings:
             raise ConfigError(f"time limit must be positive seconds, got {self.time_limit}")
         if self.target is not None and not math.isfinite(self.target):
             raise ConfigError(f"target must be a finite fitness, got {self.target}")
+        if not 0.0 <= self.start_spread <= 1.0:
+            raise ConfigError(
+                f"start spread must be a share of each range in [0, 1], got {self.start_spread}"
+            )
         if self.start_points < 0:
             raise ConfigError(
                 f"start points must be 0 (the optimizer's initial population) or more, "
@@ -215,7 +219,7 @@ def _with_start_points(spec: RunSpec, space: Space, optimizer: Optimizer) -> Run
     settings = spec.settings
     if settings.start is None:
         return spec
-    check_start(space, settings.start, settings.start_spread)
+    check_start(space, settings.start)
     count = settings.start_points or optimizer.initial_population
     return replace(spec, settings=replace(settings, start_points=count))
 
@@ -435,11 +439,12 @@ class _Session:
     def _ask(self, first: int, count: int) -> np.ndarray:
         """Candidates number first to first + count - 1: the warm start's points while they
         last, then the optimizer's, which is told the start points as if it had asked them."""
+        if first >= len(self.start):  # past the start points (always, without a warm start)
+            return self.optimizer.ask(count)
         starting = self.start[first : first + count]
         if len(starting) == count:
             return starting
-        asked = self.optimizer.ask(count - len(starting))
-        return np.concatenate([starting, asked]) if len(starting) else asked
+        return np.concatenate([starting, self.optimizer.ask(count - len(starting))])
 
     @property
     def target_reached(self) -> bool:

@@ -16,8 +16,9 @@ from metaopt.space import Space
 START_STREAM = 0x5741524D
 
 
-def check_start(space: Space, point: Sequence[float], spread: float) -> None:
-    """ConfigError naming what is wrong with a start point for this space."""
+def check_start(space: Space, point: Sequence[float]) -> None:
+    """ConfigError naming what is wrong with a start point for this space (the spread is a
+    run setting, checked with the others: RunSettings.check)."""
     if len(point) != space.dim:
         raise ConfigError(
             f"the start point has {len(point)} values but the problem has {space.dim} "
@@ -34,8 +35,6 @@ def check_start(space: Space, point: Sequence[float], spread: float) -> None:
         raise ConfigError(
             f"the start point lies outside the problem's bounds: {'; '.join(outside)}"
         )
-    if not 0.0 <= spread <= 1.0:
-        raise ConfigError(f"start spread must be a share of each range in [0, 1], got {spread}")
 
 
 def start_points(

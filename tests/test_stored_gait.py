@@ -115,9 +115,10 @@ def test_stored_gait_does_what_its_record_says(name: str, engine: str) -> None:
     _assert_equal_record(metrics, gait["metrics"][engine], engine, gait["engine_versions"][engine])
 
 
-def test_the_robust_walk_claims_every_engine_without_a_fall_and_without_running() -> None:
+def test_the_robust_walk_claims_every_engine_without_a_fall_and_bounds_its_flight() -> None:
     """Issue 16's gait for all engines (docs/robustness.md): claims on MuJoCo, PyBullet and
-    ODE, none with a fall, each bounding the flight share (the test above replays them)."""
+    ODE, none with a fall, each bounding the flight share (the test above replays them; on
+    MuJoCo it flies about 11 %, more than the goal's 5 %)."""
     gait = load_gait("robust_walk")
     assert set(gait["claims"]) == set(ENGINES)
     for claim in gait["claims"].values():
