@@ -51,6 +51,9 @@ class Sensors:
     right_hip: float = 0.0  #: measured rlj3, rad (with the disturbance's sensor error)
     roll: float = 0.0  #: torso roll, rad: positive when its left side is up
     pitch: float = 0.0  #: torso pitch, rad: positive when it leans forward
+    #: torso heading against the walking phase's start, rad in [-pi, pi]: positive when
+    #: turned to the left (what a gyro integrates; read exactly, without sensor error)
+    yaw: float = 0.0
 
 
 class Gait(Protocol):
@@ -322,10 +325,13 @@ class EpisodeRunner:
         errors = disturbance.sensor_errors if disturbance is not None else None
         sensors = Sensors()
         # what was measured at the last latency + 1 steps; the gait reads the oldest
-        readings: deque[tuple[float, float, float, float]] = deque(maxlen=self.settings.latency + 1)
+        readings: deque[tuple[float, float, float, float, float]] = deque(
+            maxlen=self.settings.latency + 1
+        )
         feet = self.settings.feet
         root = backend.robot.root.name
         rotation = backend.root_rotation()
+        heading = math.atan2(float(rotation[1, 0]), float(rotation[0, 0]))
         while steps < self._walk_steps:
             angles = backend.joint_angles()
             left_hip, right_hip = float(angles[left]), float(angles[right])
@@ -334,9 +340,13 @@ class EpisodeRunner:
                 right_hip += errors[steps][1]
             roll = math.asin(max(-1.0, min(1.0, float(rotation[2, 1]))))
             pitch = math.asin(max(-1.0, min(1.0, -float(rotation[2, 0]))))
-            readings.append((left_hip, right_hip, roll, pitch))
+            yaw = math.atan2(float(rotation[1, 0]), float(rotation[0, 0])) - heading
+            yaw = math.remainder(yaw, math.tau)  # within (-pi, pi]
+            readings.append((left_hip, right_hip, roll, pitch, yaw))
             sensors.time = steps * self._period
-            sensors.left_hip, sensors.right_hip, sensors.roll, sensors.pitch = readings[0]
+            sensors.left_hip, sensors.right_hip, sensors.roll, sensors.pitch, sensors.yaw = (
+                readings[0]
+            )
             out = gait.act(sensors)
             for index, target in zip(driven, out):
                 targets[index] = target

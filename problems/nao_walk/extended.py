@@ -79,6 +79,15 @@ _STRIDE_BOUNDS: tuple[tuple[str, float, float, str], ...] = (
 )  # fmt: skip
 STRIDE_PARAM_NAMES: tuple[str, ...] = tuple(name for name, *_ in _STRIDE_BOUNDS)
 
+#: The steered controller's: the stride one's and the heading feedback's gain.
+_STEERED_BOUNDS: tuple[tuple[str, float, float, str], ...] = (
+    *_STRIDE_BOUNDS,
+    ("steer", 0.0, 4.0, "heading error into stride asymmetry, per radian (0: no steering)"),
+)
+STEERED_PARAM_NAMES: tuple[str, ...] = tuple(name for name, *_ in _STEERED_BOUNDS)
+#: The steered controller's largest stride asymmetry: a leg's hip swing x (1 +- this).
+STEER_LIMIT = 0.5
+
 LEFT = ("llj2", "llj3", "llj4", "llj5", "llj6")
 RIGHT = ("rlj2", "rlj3", "rlj4", "rlj5", "rlj6")
 
@@ -95,6 +104,11 @@ def extended_space() -> Space:
 def stride_space() -> Space:
     """The stride controller's decision variables, named and bounded."""
     return _space(_STRIDE_BOUNDS)
+
+
+def steered_space() -> Space:
+    """The steered controller's decision variables, named and bounded."""
+    return _space(_STEERED_BOUNDS)
 
 
 @functools.cache
@@ -177,10 +191,15 @@ class ExtendedCpg:
         q = (pair.v1 - pair.v2) / self._v_swing
         roll = ramp * (self._sway_s * s + self._sway_q * q) + self._roll_gain * sensors.roll
         ankle = ramp * self._ankle_bias + self._pitch_gain * sensors.pitch
+        left_swing, right_swing = self._hip_swings(sensors)
         return (
-            *self._leg(ramp, s, q, y1, ankle, roll, 0),
-            *self._leg(ramp, -s, -q, y2, ankle, roll, 5),
+            *self._leg(ramp, s, q, y1, ankle, roll, left_swing, 0),
+            *self._leg(ramp, -s, -q, y2, ankle, roll, right_swing, 5),
         )
+
+    def _hip_swings(self, sensors: Sensors) -> tuple[float, float]:
+        """The left and the right hip's swing amplitude, radians: both hip_swing here."""
+        return self._hip_swing, self._hip_swing
 
     def _knee_and_ankle(self, s: float, q: float, y: float) -> tuple[float, float]:
         """A leg's rhythmic (knee flexion, ankle pitch), radians, from its own signals (s and
@@ -189,14 +208,22 @@ class ExtendedCpg:
         return self._lift_per_y * y, 0.0
 
     def _leg(
-        self, ramp: float, s: float, q: float, y: float, ankle: float, roll: float, first: int
+        self,
+        ramp: float,
+        s: float,
+        q: float,
+        y: float,
+        ankle: float,
+        roll: float,
+        hip_swing: float,
+        first: int,
     ) -> tuple[float, float, float, float, float]:
-        """One leg's clipped (hip roll, hip, knee, ankle, ankle roll); the ankle pitch keeps
-        the foot parallel to the torso (from the clipped hip and knee) plus ``ankle`` and the
-        leg's ankle rhythm."""
+        """One leg's clipped (hip roll, hip, knee, ankle, ankle roll), its hip swinging by
+        ``hip_swing``; the ankle pitch keeps the foot parallel to the torso (from the clipped
+        hip and knee) plus ``ankle`` and the leg's ankle rhythm."""
         limits = self._limits
         lift, ankle_swing = self._knee_and_ankle(s, q, y)
-        hip = _clip(ramp * (self._hip_bias + self._hip_swing * s), limits[first + 1])
+        hip = _clip(ramp * (self._hip_bias + hip_swing * s), limits[first + 1])
         knee = _clip(-ramp * (self._knee_bias + lift), limits[first + 2])
         return (
             _clip(roll, limits[first]),
@@ -223,6 +250,24 @@ class StrideCpg(ExtendedCpg):
         ankle swings by push x (cos(push_phase) s + sin(push_phase) q)."""
         lift = self._knee_lift * max(0.0, self._knee_s * s + self._knee_q * q)
         return lift, self._push_s * s + self._push_q * q
+
+
+class SteeredCpg(StrideCpg):
+    """The steered controller: the stride one, steering back to the heading it started with
+    by stepping further with one leg than with the other."""
+
+    param_names = STEERED_PARAM_NAMES
+    label = "the steered controller"
+
+    def _configure(self, values: Mapping[str, float]) -> None:
+        super()._configure(values)
+        self._steer = values["steer"]
+
+    def _hip_swings(self, sensors: Sensors) -> tuple[float, float]:
+        """hip_swing x (1 + u) on the left and x (1 - u) on the right, u = steer x yaw within
+        +-STEER_LIMIT: turned left (yaw > 0), the left leg steps further and turns it back."""
+        u = _clip(self._steer * sensors.yaw, (-STEER_LIMIT, STEER_LIMIT))
+        return self._hip_swing * (1.0 + u), self._hip_swing * (1.0 - u)
 
 
 def _clip(value: float, limits: tuple[float, float]) -> float:

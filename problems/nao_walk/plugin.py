@@ -38,7 +38,14 @@ from .episode import (
     Push,
     fitness,
 )
-from .extended import ExtendedCpg, StrideCpg, extended_space, stride_space
+from .extended import (
+    ExtendedCpg,
+    SteeredCpg,
+    StrideCpg,
+    extended_space,
+    steered_space,
+    stride_space,
+)
 from .robot import nao
 from .robustness import STANDARD_TABLE
 from .video import film
@@ -58,12 +65,13 @@ def _paper_cpg(params: list[float], limits: Mapping[str, tuple[float, float]]) -
     )
 
 
-#: The controllers nao-walk can tune: the paper's, and the extended and stride ones of
-#: extended.py.
+#: The controllers nao-walk can tune: the paper's, and the extended, stride and steered ones
+#: of extended.py.
 CONTROLLER_KINDS = {
     "paper": ControllerKind(cpg_space, _paper_cpg),
     "extended": ControllerKind(extended_space, ExtendedCpg),
     "stride": ControllerKind(stride_space, StrideCpg),
+    "steered": ControllerKind(steered_space, SteeredCpg),
 }
 CONTROLLERS = tuple(CONTROLLER_KINDS)
 #: worlds: none, or one cell of the standard perturbation table drawn per evaluation.
@@ -73,8 +81,9 @@ PARAMS = (
     Param("backend", str, "mujoco", "physics engine (an installed physics backend plugin), or "
           "several joined by '+' to score the worst of them"),
     Param("controller", str, "paper", "paper (the paper's CPG and its 10 parameters), "
-          "extended (sway, knee lift, torso feedback; docs/nao-walk.md) or stride (extended, "
-          "with a knee phase and an ankle push-off)", choices=CONTROLLERS),
+          "extended (sway, knee lift, torso feedback; docs/nao-walk.md), stride (extended, "
+          "with a knee phase and an ankle push-off) or steered (stride, with heading "
+          "feedback)", choices=CONTROLLERS),
     Param("fitness", str, "robust", "robust (monotone, default) or paper (eq. 9 as printed)",
           choices=FITNESS_KINDS),
     Param("duration", float, 15.0, "simulated seconds per episode, lock phase included",
