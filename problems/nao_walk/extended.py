@@ -31,6 +31,11 @@ for the leg: + for the left, - for the right):
 * knee: -(knee_bias + knee_lift * max(0, cos(knee_phase) s + sin(knee_phase) q));
 * ankle pitch: as above, plus push * (cos(push_phase) s + sin(push_phase) q), a push-off
   (toes down while the leg is behind) for push > 0 at phase 0.
+
+The steered controller (``controller=steered``) is the stride one with heading feedback: with
+u = steer * yaw (the torso's heading turned since walking began) within +-STEER_LIMIT, the left
+hip swings by hip_swing * (1 + u) and the right by hip_swing * (1 - u), so that a robot turned
+left steps further with its left leg and turns back.
 """
 
 from __future__ import annotations

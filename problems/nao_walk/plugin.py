@@ -343,7 +343,7 @@ def metaopt_problems() -> list[ProblemInfo]:
                 "Tune the 10 parameters of a two-neuron Matsuoka CPG (tau1, tau2, alpha, beta, "
                 "gamma, c, w11, w12, b1, b2) so the classic rcssserver3d NAO walks straight: "
                 "15 s episodes, 3 s lock phase, 50 Hz control, fitness X - |Y| with a fall "
-                "penalty; controller=extended or stride tunes a richer CPG instead. See "
+                "penalty; controller=extended, stride or steered tunes a richer CPG instead. See "
                 "docs/nao-walk.md."
             ),
             default_budget=750,
