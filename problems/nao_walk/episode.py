@@ -341,7 +341,7 @@ class EpisodeRunner:
             roll = math.asin(max(-1.0, min(1.0, float(rotation[2, 1]))))
             pitch = math.asin(max(-1.0, min(1.0, -float(rotation[2, 0]))))
             yaw = math.atan2(float(rotation[1, 0]), float(rotation[0, 0])) - heading
-            yaw = math.remainder(yaw, math.tau)  # within (-pi, pi]
+            yaw = math.remainder(yaw, math.tau)  # within [-pi, pi]
             readings.append((left_hip, right_hip, roll, pitch, yaw))
             sensors.time = steps * self._period
             sensors.left_hip, sensors.right_hip, sensors.roll, sensors.pitch, sensors.yaw = (
