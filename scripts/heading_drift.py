@@ -1,0 +1,75 @@
+"""Where a stored gait's drift comes from: its heading, over noise seeds, on each engine
+(docs/robustness.md, second search).
+
+For each engine, over SEEDS noise seeds (nominal world, noise 0.1): the torso's yaw turned
+half-way through the walk and at its end (read from the engine every control step), the final
+lateral drift, and their correlation; with ``--steer G`` also the same gait's parameters under
+the steered controller's heading feedback at gain G (a stride gait only).
+
+    python scripts/heading_drift.py robust_walk --steer 1
+"""
+
+from __future__ import annotations
+
+import argparse
+import math
+
+import numpy as np
+
+from metaopt_problems.nao_walk.plugin import NaoWalk
+from metaopt_problems.nao_walk.stored_gaits import ENGINES, gait_vector, load_gait
+
+NOISE = 0.1
+
+
+def turned(problem: NaoWalk, x: np.ndarray, seed: int) -> tuple[float, float, float, bool]:
+    """One episode: (yaw half-way, yaw at the end, both degrees; drift, m; fell)."""
+    runner = problem.runner
+    headings: list[float] = []
+
+    def heading(_: int) -> None:
+        rotation = runner.backend.root_rotation()
+        headings.append(math.atan2(rotation[1, 0], rotation[0, 0]))
+
+    result = runner.run(problem.gait(x), disturbance=problem.disturbance(seed), on_step=heading)
+    yaw = np.degrees(np.unwrap(headings) - headings[0])
+    return float(yaw[len(yaw) // 2]), float(yaw[-1]), result.drift, result.fell
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("gait", help="a stored gait's name")
+    parser.add_argument("--seeds", type=int, default=10)
+    parser.add_argument("--steer", type=float, help="also replay it steered at this gain")
+    args = parser.parse_args()
+    record = load_gait(args.gait)
+    params = {**record["problem_params"], "worlds": "none", "noise": NOISE}
+    x = gait_vector(record)
+    print(f"{args.gait}, {args.seeds} seeds at noise {NOISE}, nominal world")
+    for engine in ENGINES:
+        problem = NaoWalk(**{**params, "backend": engine})
+        rows = np.array([turned(problem, x, seed) for seed in range(args.seeds)])
+        problem.close()
+        half, end, drift, fell = rows.T
+        print(
+            f"{engine}: |yaw| half-way max {np.abs(half).max():.1f} deg, at the end max "
+            f"{np.abs(end).max():.1f} deg; median |drift| {np.median(np.abs(drift)):.2f} m; "
+            f"corr(drift, final yaw) {np.corrcoef(drift, end)[0, 1]:.2f}; falls {int(fell.sum())}"
+        )
+        if args.steer is not None:
+            steered = NaoWalk(**{**params, "backend": engine, "controller": "steered"})
+            metrics = [
+                steered.evaluate(np.append(x, args.steer), seed).metrics
+                for seed in range(args.seeds)
+            ]
+            steered.close()
+            print(
+                f"  steered at {args.steer}: median |drift| "
+                f"{np.median([abs(m['drift']) for m in metrics]):.2f} m, median speed "
+                f"{np.median([m['speed'] for m in metrics]):.3f} m/s, falls "
+                f"{sum(int(m['fell']) for m in metrics)}"
+            )
+
+
+if __name__ == "__main__":
+    main()
