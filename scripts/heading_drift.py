@@ -1,7 +1,8 @@
 """Where a stored gait's drift comes from: its heading, over noise seeds, on each engine
 (docs/robustness.md, second search).
 
-For each engine, over SEEDS noise seeds (nominal world, noise 0.1): the torso's yaw turned
+For each engine, over SEEDS noise seeds (the stored-gait replays' seeds, nominal world, noise
+0.1): the torso's yaw turned
 half-way through the walk and at its end (read from the engine every control step), the final
 lateral drift, and their correlation; with ``--steer G`` also the same gait's parameters under
 the steered controller's heading feedback at gain G (a stride gait only).
@@ -16,8 +17,17 @@ import math
 
 import numpy as np
 
+from metaopt.robustness import summarize
+from metaopt.seeding import EvaluationSeeds
 from metaopt_problems.nao_walk.plugin import NaoWalk
-from metaopt_problems.nao_walk.stored_gaits import ENGINES, gait_vector, load_gait
+from metaopt_problems.nao_walk.stored_gaits import (
+    ENGINES,
+    gait_problem,
+    gait_vector,
+    load_gait,
+    replay_over_seeds,
+    with_steering,
+)
 
 NOISE = 0.1
 
@@ -43,12 +53,13 @@ def main() -> None:
     parser.add_argument("--steer", type=float, help="also replay it steered at this gain")
     args = parser.parse_args()
     record = load_gait(args.gait)
-    params = {**record["problem_params"], "worlds": "none", "noise": NOISE}
     x = gait_vector(record)
+    draw = EvaluationSeeds(0)  # the seeds replay_over_seeds draws
     print(f"{args.gait}, {args.seeds} seeds at noise {NOISE}, nominal world")
     for engine in ENGINES:
-        problem = NaoWalk(**{**params, "backend": engine})
-        rows = np.array([turned(problem, x, seed) for seed in range(args.seeds)])
+        params = {**record["problem_params"], "worlds": "none", "noise": NOISE}
+        problem = gait_problem(params, engine)
+        rows = np.array([turned(problem, x, draw(i)) for i in range(args.seeds)])
         problem.close()
         half, end, drift, fell = rows.T
         print(
@@ -57,17 +68,14 @@ def main() -> None:
             f"corr(drift, final yaw) {np.corrcoef(drift, end)[0, 1]:.2f}; falls {int(fell.sum())}"
         )
         if args.steer is not None:
-            steered = NaoWalk(**{**params, "backend": engine, "controller": "steered"})
-            metrics = [
-                steered.evaluate(np.append(x, args.steer), seed).metrics
-                for seed in range(args.seeds)
-            ]
-            steered.close()
+            samples = replay_over_seeds(
+                with_steering(record, args.steer), engine, args.seeds, NOISE
+            )
             print(
                 f"  steered at {args.steer}: median |drift| "
-                f"{np.median([abs(m['drift']) for m in metrics]):.2f} m, median speed "
-                f"{np.median([m['speed'] for m in metrics]):.3f} m/s, falls "
-                f"{sum(int(m['fell']) for m in metrics)}"
+                f"{summarize(samples, '|drift|')[0]:.2f} m, median speed "
+                f"{summarize(samples, 'speed')[0]:.3f} m/s, falls "
+                f"{sum(int(m['fell']) for m in samples)}"
             )
 
 

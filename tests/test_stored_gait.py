@@ -1,16 +1,16 @@
 """The gaits kept as data (problems/nao_walk/gaits/*.json) still do what their records say.
 
-Each record was made by scripts/store_gait.py from the best evaluation of a run (the command that
-found it is in the record). A claim is a statistic, not one trajectory: on every engine its
-record *claims* (for hs_walk: MuJoCo; for the extended and stride controllers' gaits:
-docs/faster-walk.md; for robust_walk and steered_walk all three: docs/robustness.md), over the
-claim's seeds at its noise, the median distance must be at least the claimed one (a little below
-what was measured), the median |drift| at most the claimed one, the fall rate (and, where
-claimed, the median flight share) at most the claimed one (since the engines were corrected,
-issue 14, some claims record that a gait falls there). On every engine, claimed or not, every
-recorded metric of the episode it was found with must equal the stored record: the episode is
-deterministic, so any change is a change of the simulation or the controller; on an engine it
-does not claim the record documents the cross-engine transfer.
+Each record was made by scripts/store_gait.py from a run's best candidate (by its aggregate
+where the run resampled; the command that found it is in the record). A claim is a statistic,
+not one trajectory: on every engine its record *claims* (for hs_walk: MuJoCo; for the extended
+and stride controllers' gaits: docs/faster-walk.md; for robust_walk and steered_walk all three:
+docs/robustness.md), over the claim's seeds at its noise, the median distance must be at least
+the claimed one (a little below what was measured), the median |drift| at most the claimed one,
+the fall rate (and, where claimed, the median flight share) at most the claimed one (since the
+engines were corrected, issue 14, some claims record that a gait falls there). On every engine,
+claimed or not, every recorded metric of the episode it was found with must equal the stored
+record: the episode is deterministic, so any change is a change of the simulation or the
+controller; on an engine it does not claim the record documents the cross-engine transfer.
 """
 
 from __future__ import annotations

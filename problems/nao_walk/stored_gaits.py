@@ -57,6 +57,19 @@ def gait_seed(record: dict) -> int:
     return found_by.get("evaluation_seed", found_by["seed"])
 
 
+def with_steering(record: dict, gain: float) -> dict:
+    """A stride gait's record as the steered controller's: the same parameters, and the
+    heading feedback at ``gain`` (docs/nao-walk.md, the steered controller)."""
+    controller = record["problem_params"].get("controller", "paper")
+    if controller != "stride":
+        raise ValueError(f"only a stride gait can be steered, not a {controller} one")
+    return {
+        **record,
+        "problem_params": {**record["problem_params"], "controller": "steered"},
+        "parameters": {**record["parameters"], "steer": gain},
+    }
+
+
 def stored_candidates() -> dict[str, StoredCandidate]:
     """Every stored gait as nao-walk announces it (for ``metaopt robustness GAIT``)."""
     records = {name: load_gait(name) for name in stored_gait_names()}
