@@ -5,7 +5,9 @@ controller.cpg_space; extended.py's controllers with ``controller``); evaluate r
 15 s episode (episode.py) on the chosen physics backend and returns the fitness and metrics.
 With several backends joined by '+' (``mujoco+pybullet``) it runs the episode on each: the
 fitness and the plain metrics are the worst engine's, and every engine's metrics are added as
-``NAME@ENGINE``. Perturbations (docs/robustness.md): friction, servo gain, a mass scale (the
+``NAME@ENGINE`` (``engine_score=mean`` scores their mean instead: a search from random
+candidates then sees every engine's progress, where the worst is flat until a gait walks on
+all). Perturbations (docs/robustness.md): friction, servo gain, a mass scale (the
 robot description's bodies scaled before any engine is built), a push on the torso, sensor
 latency, and the seed-drawn noise.
 """
@@ -76,10 +78,15 @@ CONTROLLER_KINDS = {
 CONTROLLERS = tuple(CONTROLLER_KINDS)
 #: worlds: none, or one cell of the standard perturbation table drawn per evaluation.
 WORLDS = ("none", "standard")
+#: How several engines' fitnesses make one: the worst of them, or their mean.
+ENGINE_SCORES = ("worst", "mean")
 
 PARAMS = (
     Param("backend", str, "mujoco", "physics engine (an installed physics backend plugin), or "
-          "several joined by '+' to score the worst of them"),
+          "several joined by '+' (scored by engine_score)"),
+    Param("engine_score", str, "worst", "with several engines: worst (the fitness is the worst "
+          "engine's) or mean (their mean; the plain metrics stay the worst engine's)",
+          choices=ENGINE_SCORES),
     Param("controller", str, "paper", "paper (the paper's CPG and its 10 parameters), "
           "extended (sway, knee lift, torso feedback; docs/nao-walk.md), stride (extended, "
           "with a knee phase and an ankle push-off) or steered (stride, with heading "
@@ -133,9 +140,9 @@ PARAMS = (
 
 
 class NaoWalk(Problem):
-    """The paper's task on one physics backend (or the worst of several). With noise 0 the seed
-    is not used; with noise > 0 it draws the episode's Disturbance. Either way (x, seed) gives
-    the same episode in any process."""
+    """The paper's task on one physics backend (or several, scored by engine_score). With noise
+    0 the seed is not used; with noise > 0 it draws the episode's Disturbance. Either way
+    (x, seed) gives the same episode in any process."""
 
     sense = Sense.MAXIMIZE
     key_metrics = ("distance", "drift", "speed", "time_walked", "fell")
@@ -164,6 +171,7 @@ class NaoWalk(Problem):
         measure_flight: bool = False,
         flight_penalty: float = 0.0,
         worlds: str = "none",
+        engine_score: str = "worst",
     ) -> None:
         #: every parameter, to build the perturbed worlds from (worlds=standard)
         self._params = {k: v for k, v in locals().items() if k not in ("self", "__class__")}
@@ -221,6 +229,12 @@ class NaoWalk(Problem):
         if worlds not in WORLDS:
             raise ConfigError(f"nao-walk: unknown worlds {worlds!r}; accepted: {', '.join(WORLDS)}")
         self.worlds = worlds
+        if engine_score not in ENGINE_SCORES:
+            raise ConfigError(
+                f"nao-walk: unknown engine_score {engine_score!r}; accepted: "
+                f"{', '.join(ENGINE_SCORES)}"
+            )
+        self.engine_score = engine_score
         self._worlds: dict[int, NaoWalk] = {}
         if worlds == "standard":
             for cell in range(len(STANDARD_TABLE.cells)):
@@ -285,6 +299,8 @@ class NaoWalk(Problem):
         for engine, evaluation in on_engine.items():
             for name, value in evaluation.metrics.items():
                 metrics[f"{name}@{engine}"] = value
+        if self.engine_score == "mean":
+            return Evaluation(float(np.mean([e.fitness for e in on_engine.values()])), metrics)
         return Evaluation(worst.fitness, metrics)
 
     def _evaluate_on(self, engine: str, gait: Gait, seed: int) -> Evaluation:
