@@ -1,6 +1,7 @@
 """nao-walk on several engines at once (backend=mujoco+pybullet): the fitness is the worse of
-the single-engine fitnesses, every engine's metrics are kept as NAME@ENGINE beside the worst
-engine's, engines are built lazily, and bad engine lists are configuration errors."""
+the single-engine fitnesses (or their mean, engine_score=mean), every engine's metrics are
+kept as NAME@ENGINE beside the worst engine's, engines are built lazily, and bad engine lists
+are configuration errors."""
 
 from __future__ import annotations
 
@@ -12,14 +13,16 @@ import pytest
 from metaopt.errors import ConfigError
 from metaopt.params import resolve
 from metaopt.plugins import registry
+from metaopt_problems.nao_walk.plugin import NaoWalk
 from metaopt_problems.nao_walk.stored_gaits import gait_vector, load_gait
 
 SHORT = {"duration": 3.0, "lock": 1.0}
 
 
-def _problem(backend: str):
+def _problem(backend: str, **params: str):
     info = registry().problem("nao-walk")
-    return info.factory(**resolve(info.params, {"backend": backend, **SHORT}, "nao-walk"))
+    given = {"backend": backend, **SHORT, **params}
+    return info.factory(**resolve(info.params, given, "nao-walk"))
 
 
 def _candidates() -> list[np.ndarray]:
@@ -46,6 +49,31 @@ def test_fitness_is_the_worse_engine_and_metrics_are_kept_per_engine() -> None:
     finally:
         for problem in (*single.values(), both):
             problem.close()
+
+
+def test_engine_score_mean_is_the_engines_mean_and_keeps_the_worst_metrics() -> None:
+    single = {name: _problem(name) for name in ("mujoco", "ode")}
+    mean = _problem("mujoco+ode", engine_score="mean")
+    worst = _problem("mujoco+ode")
+    try:
+        fitnesses = []
+        for x in _candidates():
+            alone = {name: problem.evaluate(x, 11) for name, problem in single.items()}
+            joint = mean.evaluate(x, 11)
+            assert joint.fitness == pytest.approx(np.mean([e.fitness for e in alone.values()]))
+            assert joint.metrics == worst.evaluate(x, 11).metrics
+            fitnesses.append({name: e.fitness for name, e in alone.items()})
+        assert any(f["mujoco"] != f["ode"] for f in fitnesses)  # the mean is not the worst
+    finally:
+        for problem in (*single.values(), mean, worst):
+            problem.close()
+
+
+def test_an_unknown_engine_score_is_a_config_error() -> None:
+    with pytest.raises(ConfigError, match=r"engine_score.*'best'.*one of worst, mean"):
+        _problem("mujoco+ode", engine_score="best")
+    with pytest.raises(ConfigError, match="engine_score 'best'; accepted: worst, mean"):
+        NaoWalk(backend="mujoco+ode", engine_score="best")  # from Python, past the CLI's check
 
 
 def test_engines_are_built_on_first_use_and_not_pickled() -> None:
