@@ -4,9 +4,12 @@
 # The steered controller: the stride one with heading feedback (it steps further with one leg
 # than with the other to turn back to the heading it started with).
 # Stage 1: HS from random gaits, with the flight penalty (a walk, not a run), on all three
-#   engines in the nominal world, scored by the engines' mean fitness (engine_score=mean: a
-#   random gait seldom walks on all three, and their worst is flat until one does, but their
-#   mean rewards walking further on any of them, so the basin found is one that transfers).
+#   engines in the nominal world, scored by the engines' mean (engine_score=mean) of each
+#   one's progress, a fall costing only the walk it cut short (fitness=progress): a random
+#   gait seldom walks on all three, and scored by the worst engine, or with the fall penalty,
+#   standing beats everything until one does; this score rewards walking further and longer
+#   on each engine, so the basin found is one that transfers. Two candidates per batch, one
+#   per worker (HS improvises one at a time by default).
 # Stage 2: HS warm-started from stage 1's best (it and 19 gaits within 5 % of each range around
 #   it), scored on all three engines at once (the worst engine's fitness), each candidate in the
 #   same 4 sampled worlds of the standard table (common seeds) at background noise 0.1, with
@@ -15,21 +18,21 @@
 # Stage 3: the same from stage 2's best (within 2 %), with the agent's position loop at
 #   servo_gain 12 /s instead of 10.
 # Then the last stage's best over the whole standard table on fresh seeds.
-# The defaults are the third search's; the second search ran stage 1 on MuJoCo alone:
-# STAGE1_BACKEND=mujoco STAGE1_WORKERS=1 STAGE2_BUDGET=1600; a one-seed pilot of a wider
-# stage 1 of it with STAGE1_BACKEND=mujoco STAGE1_BUDGET=3000 STAGE2_BUDGET=1000.
+# The budgets are the third search's; the second search (stage 1 on MuJoCo alone, robust
+# fitness, one worker; stage 2 at 1600) is this script at commit 9d03e62.
 set -euo pipefail
 seed=${1:?usage: [STAGE1_BACKEND=E STAGE1_BUDGET=N STAGE1_WORKERS=N STAGE2_BUDGET=N] robust-walk-search.sh SEED}
 stage1_backend=${STAGE1_BACKEND:-mujoco+pybullet+ode}
 stage1_budget=${STAGE1_BUDGET:-1000}
 stage1_workers=${STAGE1_WORKERS:-2}
-stage2_budget=${STAGE2_BUDGET:-1200}
+stage2_budget=${STAGE2_BUDGET:-1000}
 db=robust-walk-s$seed.db
 walk=(--set controller=steered)
 worlds=(--set flight_penalty=100 --resample 4 --common-seeds --workers 2
         --set backend=mujoco+pybullet+ode --set worlds=standard --set noise=0.1)
 metaopt run -o hs -p nao-walk --budget "$stage1_budget" --seed "$seed" "${walk[@]}" \
-    --set flight_penalty=20 --set backend="$stage1_backend" --set engine_score=mean --workers "$stage1_workers" --db "$db"
+    --set flight_penalty=20 --set backend="$stage1_backend" --set engine_score=mean \
+    --set fitness=progress --workers "$stage1_workers" --batch "$stage1_workers" --db "$db"
 metaopt run -o hs -p nao-walk --budget "$stage2_budget" --seed "$seed" --start-from 1 "${walk[@]}" \
     "${worlds[@]}" --db "$db"
 metaopt run -o hs -p nao-walk --budget 640 --seed "$seed" --start-from 2 --start-spread 0.02 \

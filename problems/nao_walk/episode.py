@@ -30,7 +30,7 @@ FALL_PENALTY = 1.0
 #: ... plus this much per second of walking phase left at the fall, metres per second
 #: (more than twice the paper's best walking speed of 0.44 m/s).
 FALL_PENALTY_RATE = 1.0
-FITNESS_KINDS = ("robust", "paper")
+FITNESS_KINDS = ("robust", "paper", "progress")
 #: Share of the walking phase a walk may spend with neither foot on the ground before
 #: flight_penalty applies (issue 16's "a walk, not a run": at most 5 %).
 FLIGHT_ALLOWED = 0.05
@@ -207,12 +207,15 @@ def fitness(
     stopping on the spot at that moment.
     paper: eq. 9 as printed: progress, divided by the time left after a fall. Flawed: a fall
     with under 1 s left multiplies the score, and with negative progress falling early helps.
+    progress: progress, where the robot fell or where it ended; a fall costs only the walk it
+    cut short (about speed x time left), so a gait that walks on one engine and falls late on
+    another scores above standing (a first search over several engines from random gaits).
     Either kind then loses flight_penalty metres per unit of flight share above FLIGHT_ALLOWED,
     where flight was measured: a run scores below a walk of the same progress.
     """
     progress = result.distance - abs(result.drift)
     remaining = duration - result.fall_time
-    if not result.fell or remaining <= 0:
+    if not result.fell or remaining <= 0 or kind == "progress":
         score = progress
     elif kind == "paper":
         score = progress / remaining

@@ -91,7 +91,8 @@ PARAMS = (
           "extended (sway, knee lift, torso feedback; docs/nao-walk.md), stride (extended, "
           "with a knee phase and an ankle push-off) or steered (stride, with heading "
           "feedback)", choices=CONTROLLERS),
-    Param("fitness", str, "robust", "robust (monotone, default) or paper (eq. 9 as printed)",
+    Param("fitness", str, "robust", "robust (monotone, default), paper (eq. 9 as printed) or "
+          "progress (no fall penalty: a fall costs the walk it cut short)",
           choices=FITNESS_KINDS),
     Param("duration", float, 15.0, "simulated seconds per episode, lock phase included",
           low=0.0, high=600.0, low_open=True),
