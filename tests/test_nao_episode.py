@@ -133,6 +133,18 @@ def test_paper_fitness_is_eq_9_as_printed() -> None:
     assert fitness(_result(1.0, 0.0, True, 14.5), "paper", 15.0) == pytest.approx(2.0)
 
 
+def test_progress_fitness_scores_a_fall_by_the_walk_it_cut_short() -> None:
+    assert fitness(_result(1.0, -0.2, False, 15.0), "progress", 15.0) == pytest.approx(0.8)
+    fell = fitness(_result(2.0, 0.3, True, 8.0), "progress", 15.0)
+    assert fell == pytest.approx(1.7 - FALL_PENALTY)  # the constant, not the time left ...
+    assert fell > 0.0 > fitness(_result(2.0, 0.3, True, 8.0), "robust", 15.0)  # ... so it beats
+    # standing still, where the robust fitness puts it below; and a lunge does not pay
+    assert fitness(_result(0.33, 0.0, True, 4.0), "progress", 15.0) < 0.0
+    # the flight penalty applies as with the other kinds
+    flying = EpisodeResult(1.0, 0.0, 12.0, False, 15.0, 0.3, 0.4, flight=0.15)
+    assert fitness(flying, "progress", 15.0, flight_penalty=20) == pytest.approx(1.0 - 20 * 0.1)
+
+
 def test_problem_rejects_unknown_backend_and_bad_timing() -> None:
     info = registry().problem("nao-walk")
     with pytest.raises(ConfigError, match="Installed: mujoco, ode, pybullet"):

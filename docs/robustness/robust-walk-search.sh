@@ -5,9 +5,10 @@
 # than with the other to turn back to the heading it started with).
 # Stage 1: HS from random gaits, with the flight penalty (a walk, not a run), on all three
 #   engines in the nominal world, scored by the engines' mean (engine_score=mean) of each
-#   one's progress, a fall costing only the walk it cut short (fitness=progress): a random
-#   gait seldom walks on all three, and scored by the worst engine, or with the fall penalty,
-#   standing beats everything until one does; this score rewards walking further and longer
+#   one's progress, a fall costing 1 m and the walk it cut short (fitness=progress): a random
+#   gait seldom walks on all three, and scored by the worst engine, or with a fall costing a
+#   metre per second left, standing beats everything until one does; this score rewards
+#   walking further and longer
 #   on each engine, so the basin found is one that transfers. Two candidates per batch, one
 #   per worker (HS improvises one at a time by default).
 # Stage 2: HS warm-started from stage 1's best (it and 19 gaits within 5 % of each range around

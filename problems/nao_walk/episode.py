@@ -207,16 +207,19 @@ def fitness(
     stopping on the spot at that moment.
     paper: eq. 9 as printed: progress, divided by the time left after a fall. Flawed: a fall
     with under 1 s left multiplies the score, and with negative progress falling early helps.
-    progress: progress, where the robot fell or where it ended; a fall costs only the walk it
-    cut short (about speed x time left), so a gait that walks on one engine and falls late on
-    another scores above standing (a first search over several engines from random gaits).
+    progress: progress, minus FALL_PENALTY after a fall, without the rate: a fall costs the
+    constant and the walk it cut short, so a gait that walks on one engine and falls after
+    walking on another scores above standing (a first search over several engines from
+    random gaits), and a lunge forward does not pay.
     Either kind then loses flight_penalty metres per unit of flight share above FLIGHT_ALLOWED,
     where flight was measured: a run scores below a walk of the same progress.
     """
     progress = result.distance - abs(result.drift)
     remaining = duration - result.fall_time
-    if not result.fell or remaining <= 0 or kind == "progress":
+    if not result.fell or remaining <= 0:
         score = progress
+    elif kind == "progress":
+        score = progress - FALL_PENALTY
     elif kind == "paper":
         score = progress / remaining
     else:

@@ -92,7 +92,7 @@ PARAMS = (
           "with a knee phase and an ankle push-off) or steered (stride, with heading "
           "feedback)", choices=CONTROLLERS),
     Param("fitness", str, "robust", "robust (monotone, default), paper (eq. 9 as printed) or "
-          "progress (no fall penalty: a fall costs the walk it cut short)",
+          "progress (a fall costs 1 m and the walk it cut short)",
           choices=FITNESS_KINDS),
     Param("duration", float, 15.0, "simulated seconds per episode, lock phase included",
           low=0.0, high=600.0, low_open=True),
