@@ -8,9 +8,8 @@
 #   one's progress, a fall costing 1 m and the walk it cut short (fitness=progress): a random
 #   gait seldom walks on all three, and scored by the worst engine, or with a fall costing a
 #   metre per second left, standing beats everything until one does; this score rewards
-#   walking further and longer
-#   on each engine, so the basin found is one that transfers. Two candidates per batch, one
-#   per worker (HS improvises one at a time by default).
+#   walking further and longer on each engine, so the basin found is one that transfers.
+#   Two candidates per batch, one per worker (HS improvises one at a time by default).
 # Stage 2: HS warm-started from stage 1's best (it and 19 gaits within 5 % of each range around
 #   it), scored on all three engines at once (the worst engine's fitness), each candidate in the
 #   same 4 sampled worlds of the standard table (common seeds) at background noise 0.1, with
