@@ -211,7 +211,7 @@ def fitness(
     constant and the walk it cut short, so a gait that walks on one engine and falls after
     walking on another scores above standing (a first search over several engines from
     random gaits), and a lunge forward does not pay.
-    Either kind then loses flight_penalty metres per unit of flight share above FLIGHT_ALLOWED,
+    Each kind then loses flight_penalty metres per unit of flight share above FLIGHT_ALLOWED,
     where flight was measured: a run scores below a walk of the same progress.
     """
     progress = result.distance - abs(result.drift)
