@@ -13,12 +13,12 @@ the steered controller's heading feedback at gain G (a stride gait only).
 from __future__ import annotations
 
 import argparse
-import math
 
 import numpy as np
 
 from metaopt.robustness import summarize
 from metaopt.seeding import EvaluationSeeds
+from metaopt_problems.nao_walk.episode import heading
 from metaopt_problems.nao_walk.plugin import NaoWalk
 from metaopt_problems.nao_walk.stored_gaits import (
     ENGINES,
@@ -37,11 +37,12 @@ def turned(problem: NaoWalk, x: np.ndarray, seed: int) -> tuple[float, float, fl
     runner = problem.runner
     headings: list[float] = []
 
-    def heading(_: int) -> None:
-        rotation = runner.backend.root_rotation()
-        headings.append(math.atan2(rotation[1, 0], rotation[0, 0]))
+    def read_heading(_: int) -> None:
+        headings.append(heading(runner.backend.root_rotation()))
 
-    result = runner.run(problem.gait(x), disturbance=problem.disturbance(seed), on_step=heading)
+    result = runner.run(
+        problem.gait(x), disturbance=problem.disturbance(seed), on_step=read_heading
+    )
     yaw = np.degrees(np.unwrap(headings) - headings[0])
     return float(yaw[len(yaw) // 2]), float(yaw[-1]), result.drift, result.fell
 

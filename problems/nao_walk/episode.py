@@ -197,6 +197,12 @@ class EpisodeResult:
         return values
 
 
+def heading(rotation: np.ndarray) -> float:
+    """The heading about the vertical, rad, of a body whose rotation matrix is rotation: the
+    angle of its forward (x) axis in the ground plane."""
+    return math.atan2(float(rotation[1, 0]), float(rotation[0, 0]))
+
+
 def fitness(
     result: EpisodeResult, kind: str, duration: float, flight_penalty: float = 0.0
 ) -> float:
@@ -337,7 +343,7 @@ class EpisodeRunner:
         feet = self.settings.feet
         root = backend.robot.root.name
         rotation = backend.root_rotation()
-        heading = math.atan2(float(rotation[1, 0]), float(rotation[0, 0]))
+        start_heading = heading(rotation)
         while steps < self._walk_steps:
             angles = backend.joint_angles()
             left_hip, right_hip = float(angles[left]), float(angles[right])
@@ -346,8 +352,7 @@ class EpisodeRunner:
                 right_hip += errors[steps][1]
             roll = math.asin(max(-1.0, min(1.0, float(rotation[2, 1]))))
             pitch = math.asin(max(-1.0, min(1.0, -float(rotation[2, 0]))))
-            yaw = math.atan2(float(rotation[1, 0]), float(rotation[0, 0])) - heading
-            yaw = math.remainder(yaw, math.tau)  # within [-pi, pi]
+            yaw = math.remainder(heading(rotation) - start_heading, math.tau)  # in [-pi, pi]
             readings.append((left_hip, right_hip, roll, pitch, yaw))
             sensors.time = steps * self._period
             sensors.left_hip, sensors.right_hip, sensors.roll, sensors.pitch, sensors.yaw = (

@@ -140,6 +140,13 @@ PARAMS = (
 )  # fmt: skip
 
 
+def _require_choice(name: str, value: str, accepted: tuple[str, ...]) -> None:
+    """ConfigError naming the parameter and what it accepts, for a value not among them (the
+    CLI checks choices before; this is for NaoWalk built from Python)."""
+    if value not in accepted:
+        raise ConfigError(f"nao-walk: unknown {name} {value!r}; accepted: {', '.join(accepted)}")
+
+
 class NaoWalk(Problem):
     """The paper's task on one physics backend (or several, scored by engine_score). With noise
     0 the seed is not used; with noise > 0 it draws the episode's Disturbance. Either way
@@ -202,10 +209,7 @@ class NaoWalk(Problem):
             self.physics_on[name] = PhysicsSettings(
                 substeps=substeps, servo_gain=servo_gain, friction=mu, slip=slip
             )
-        if controller not in CONTROLLERS:
-            raise ConfigError(
-                f"nao-walk: unknown controller {controller!r}; accepted: {', '.join(CONTROLLERS)}"
-            )
+        _require_choice("controller", controller, CONTROLLERS)
         if weight_scale != 1.0 and controller != "paper":
             raise ConfigError(
                 f"nao-walk: weight_scale widens the paper controller's Table 2 bounds; with "
@@ -227,14 +231,9 @@ class NaoWalk(Problem):
         self.robot = nao().with_mass_scale(mass_scale) if mass_scale != 1 else nao()
         self._limits = {hinge.name: (hinge.lower, hinge.upper) for hinge in self.robot.hinges}
         self._runners: dict[str, EpisodeRunner] = {}
-        if worlds not in WORLDS:
-            raise ConfigError(f"nao-walk: unknown worlds {worlds!r}; accepted: {', '.join(WORLDS)}")
+        _require_choice("worlds", worlds, WORLDS)
         self.worlds = worlds
-        if engine_score not in ENGINE_SCORES:
-            raise ConfigError(
-                f"nao-walk: unknown engine_score {engine_score!r}; accepted: "
-                f"{', '.join(ENGINE_SCORES)}"
-            )
+        _require_choice("engine_score", engine_score, ENGINE_SCORES)
         self.engine_score = engine_score
         self._worlds: dict[int, NaoWalk] = {}
         if worlds == "standard":
