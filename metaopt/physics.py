@@ -269,7 +269,9 @@ class PhysicsBackend(ABC):
 
     @abstractmethod
     def contact_forces(self) -> np.ndarray:
-        """Normal ground-contact force on each of contact_bodies, newtons."""
+        """Normal ground-contact force on each of contact_bodies, newtons: its mean over the last
+        control period's physics steps (the period's impulse / its length), so that engines
+        stepping 1, 2 or 16 times a period report the same quantity; zero after reset."""
 
     @abstractmethod
     def time(self) -> float:

@@ -5,7 +5,8 @@ Each hinge gets a velocity actuator (force = KV * (command - joint speed), limit
 reaching its target speed within the step with at most 10 N·m); how near is measured in
 docs/nao-walk.md ("Motors") by benchmarks/motor_model.py. The state (time, qpos, qvel, act,
 ctrl, warm start, applied forces) is saved and restored with mj_getState/mj_setState, which
-reproduces a run bit for bit.
+reproduces a run bit for bit. Each foot's normal force is read by a touch sensor after every
+physics step and reported as its mean over the control period.
 render() draws offscreen with mujoco.Renderer (headless OpenGL: EGL, else OSMesa).
 """
 
@@ -57,6 +58,9 @@ KV = 40.0
 #: the tiny mass-carrier spheres (I ~ 5e-6) are unstable (KV >= 200 at 4 substeps) or rock the
 #: standing robot by 1-2.5° (KV 5-2000, 4-40 substeps); measured in docs/nao-walk.md.
 ARMATURE = 0.02
+#: How far each foot's touch site reaches past its geom, m: a soft contact's point lies within
+#: half the penetration (millimetres) of the surfaces, so the site holds every contact of the foot.
+TOUCH_MARGIN = 0.01
 _STATE = mujoco.mjtState.mjSTATE_INTEGRATION
 
 
@@ -75,6 +79,14 @@ def _geom(body, with_collision: bool) -> str:
     collide = 'contype="1" conaffinity="0"' if with_collision else 'contype="0" conaffinity="0"'
     group = 0 if with_collision else 1
     return f'<geom type="{shape.kind}" size="{_vec(size)}" {collide} group="{group}"/>'
+
+
+def _touch_site(body) -> str:
+    """A site TOUCH_MARGIN larger than body's geom all round, for its touch sensor."""
+    shape = body.shape
+    half = [s / 2 for s in shape.size] if shape.kind == "box" else list(shape.size)
+    size = [h + TOUCH_MARGIN for h in half]
+    return f'<site name={quoteattr("touch_" + body.name)} type="{shape.kind}" size="{_vec(size)}"/>'
 
 
 def mjcf(robot: RobotDescription, settings: PhysicsSettings) -> str:
@@ -98,6 +110,8 @@ def mjcf(robot: RobotDescription, settings: PhysicsSettings) -> str:
         parts.append(f'<inertial pos="0 0 0" mass="{body.mass:.10g}" '
                      f'diaginertia="{_vec(body.inertia)}"/>')  # fmt: skip
         parts.append(_geom(body, body.collides))
+        if body.name in robot.contact_bodies:
+            parts.append(_touch_site(body))
         parts += [body_xml(child, body.center) for child in children.get(body.name, [])]
         parts.append("</body>")
         return "\n".join(parts)
@@ -107,6 +121,10 @@ def mjcf(robot: RobotDescription, settings: PhysicsSettings) -> str:
         f'<velocity name={quoteattr(h.name)} joint={quoteattr(h.name)} kv="{KV}" '
         f'forcerange="{-settings.max_joint_torque} {settings.max_joint_torque}"/>'
         for h in robot.hinges
+    )
+    touch = "\n".join(
+        f"<touch name={quoteattr('touch_' + name)} site={quoteattr('touch_' + name)}/>"
+        for name in robot.contact_bodies
     )
     mu = settings.friction
     return f"""<mujoco model={quoteattr(robot.name)}>
@@ -131,6 +149,9 @@ def mjcf(robot: RobotDescription, settings: PhysicsSettings) -> str:
 <actuator>
 {actuators}
 </actuator>
+<sensor>
+{touch}
+</sensor>
 </mujoco>"""
 
 
@@ -154,7 +175,11 @@ class MujocoBackend(PhysicsBackend):
         self._rotation = np.zeros(9)
         self._feet = [self.model.body(name).id for name in robot.contact_bodies]
         self._bad = self.data.warning[mujoco.mjtWarning.mjWARN_BADQACC]
-        self._force = np.zeros(6)
+        #: each foot's touch sensor in sensordata (the sensors are the feet's, in order)
+        self._touch = self.data.sensordata[: len(robot.contact_bodies)]
+        #: the feet's normal forces, summed over a control period's physics steps, then its mean
+        self._contact_sum = np.zeros(len(robot.contact_bodies))
+        self._contact_mean = np.zeros(len(robot.contact_bodies))
         self._renderer: mujoco.Renderer | None = None
         self._camera = mujoco.MjvCamera()
         self._camera.distance = CAMERA_DISTANCE
@@ -167,13 +192,19 @@ class MujocoBackend(PhysicsBackend):
         mujoco.mj_resetData(self.model, self.data)
         self.data.qpos[2] = self.robot.start_height
         self._angles[:] = self.robot.rest_angles
+        self._contact_mean[:] = 0.0
         self.set_ground_friction(self.settings.friction)
 
     def step(self, joint_targets: np.ndarray) -> None:
         servo_velocities(joint_targets, self._angles, self.settings, self._command)
         self.data.ctrl[:] = self._command
         unstable_before = self._bad.number
-        mujoco.mj_step(self.model, self.data, self._substeps)
+        total = self._contact_sum
+        total[:] = 0.0
+        for _ in range(self._substeps):
+            mujoco.mj_step(self.model, self.data)
+            total += self._touch
+        np.divide(total, self._substeps, out=self._contact_mean)
         if self._bad.number != unstable_before:
             raise EvaluationError(
                 f"MuJoCo simulation became unstable at t = {self.data.time:.3f} s"
@@ -196,15 +227,7 @@ class MujocoBackend(PhysicsBackend):
         return self.data.xpos[self.model.body(name).id].copy()
 
     def contact_forces(self) -> np.ndarray:
-        forces = np.zeros(len(self._feet))
-        for i in range(self.data.ncon):
-            contact = self.data.contact[i]
-            body = self.model.geom_bodyid[contact.geom]
-            for k, foot in enumerate(self._feet):
-                if foot in body:
-                    mujoco.mj_contactForce(self.model, self.data, i, self._force)
-                    forces[k] += self._force[0]
-        return forces
+        return self._contact_mean.copy()
 
     def time(self) -> float:
         return self.data.time
@@ -251,10 +274,11 @@ class MujocoBackend(PhysicsBackend):
     def save_state(self) -> Any:
         state = np.empty(mujoco.mj_stateSize(self.model, _STATE))
         mujoco.mj_getState(self.model, self.data, state, _STATE)
-        return state
+        return state, self._contact_mean.copy()
 
     def restore_state(self, state: Any) -> None:
-        mujoco.mj_setState(self.model, self.data, state, _STATE)
+        integration, self._contact_mean[:] = state
+        mujoco.mj_setState(self.model, self.data, integration, _STATE)
         mujoco.mj_forward(self.model, self.data)
 
     def render(self, width: int, height: int, camera_target: Vec3) -> np.ndarray:

@@ -211,6 +211,8 @@ class OdeBackend(PhysicsBackend):
         self._angles_view.flags.writeable = False
         self._steps = 0
         self._readings: tuple[np.ndarray, np.ndarray] | None = None
+        #: the feet's normal forces summed over the control period's physics steps but the last
+        self._contact_earlier = np.zeros(len(robot.contact_bodies))
         self._puppet: Any = None
         pose = rest_pose(robot)
         for body, handle in zip(robot.bodies, self._bodies, strict=True):
@@ -305,8 +307,10 @@ class OdeBackend(PhysicsBackend):
         set_param = self._ode.dJointSetHingeParam
         for joint, velocity in zip(self._joints, self._command.tolist()):
             set_param(joint, PARAM_VEL, velocity)
+        self._contact_earlier[:] = 0.0
         for _ in range(self._substeps - 1):
             self._physics_step()
+            self._contact_earlier += self._contact_now()
         # joint_torques needs the child frames as the last physics step begins (only that
         # step's feedback is read): taken once per control period, not every physics step.
         for k, row in enumerate(self._child):
@@ -399,10 +403,15 @@ class OdeBackend(PhysicsBackend):
         return mass
 
     def contact_forces(self) -> np.ndarray:
-        """Normal force of the ground on each contact body during the last physics step, from
-        the contact joints' feedback."""
+        """Normal force of the ground on each contact body, the mean over the control period's
+        physics steps (one at the server's settings)."""
         if self._readings is not None:
             return self._readings[0]
+        return (self._contact_earlier + self._contact_now()) / self._substeps
+
+    def _contact_now(self) -> np.ndarray:
+        """Normal force of the ground on each contact body during the last physics step, from
+        the contact joints' feedback."""
         forces = np.zeros(len(self.robot.contact_bodies))
         for foot, g, c in self._touching:
             normal = self._templates[g][c].geom.normal

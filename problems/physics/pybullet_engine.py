@@ -4,7 +4,9 @@ Each hinge is driven with VELOCITY_CONTROL and a force limit, PyBullet's analogu
 hinge motor of rcssserver3d. A control period is ``substeps`` stepSimulation calls of
 control_period / substeps each, not one call with numSubSteps: PyBullet sizes a motor's impulse
 limit (and divides its reported torques and contact forces) by the time step it was given, so
-with numSubSteps = 4 a 10 N·m motor held 40 N·m. Every instance has its own DIRECT client.
+with numSubSteps = 4 a 10 N·m motor held 40 N·m. Each foot's normal force is read after every
+stepSimulation and reported as its mean over the control period. Every instance has its own
+DIRECT client.
 render() uses PyBullet's built-in software renderer (TinyRenderer: no OpenGL needed).
 """
 
@@ -176,6 +178,7 @@ class PybulletBackend(PhysicsBackend):
         self.set_ground_friction(self.settings.friction)
         self._steps = 0
         self._external = {}
+        self._contact_mean = np.zeros(len(self._feet))
         self._read()
 
     def _read(self) -> None:
@@ -192,6 +195,7 @@ class PybulletBackend(PhysicsBackend):
             self._robot, self._joints, pybullet.VELOCITY_CONTROL,
             targetVelocities=self._command.tolist(), forces=self._forces, **self._call,
         )  # fmt: skip
+        total = np.zeros(len(self._feet))
         for _ in range(self._substeps):
             for link, force in self._external.items():
                 pybullet.applyExternalForce(
@@ -199,6 +203,8 @@ class PybulletBackend(PhysicsBackend):
                     **self._call,
                 )  # fmt: skip
             pybullet.stepSimulation(**self._call)
+            total += self._contact_now()
+        self._contact_mean = total / self._substeps
         self._steps += 1
         self._read()
         if not np.isfinite(self._pose[0][2]) or abs(self._pose[0][2]) > 1e3:
@@ -220,6 +226,10 @@ class PybulletBackend(PhysicsBackend):
         return np.asarray(pybullet.getLinkState(self._robot, link, **self._call)[0])
 
     def contact_forces(self) -> np.ndarray:
+        return self._contact_mean.copy()
+
+    def _contact_now(self) -> np.ndarray:
+        """Each foot's normal force in the last stepSimulation."""
         return np.array(
             [
                 sum(c[9] for c in pybullet.getContactPoints(
@@ -275,10 +285,14 @@ class PybulletBackend(PhysicsBackend):
         pybullet.resetBaseVelocity(self._robot, pushed, angular, **self._call)
 
     def save_state(self) -> Any:
-        return (pybullet.saveState(**self._call), self._steps, dict(self._external))
+        return (
+            pybullet.saveState(**self._call), self._steps, dict(self._external),
+            self._contact_mean.copy(),
+        )  # fmt: skip
 
     def restore_state(self, state: Any) -> None:
-        state_id, self._steps, external = state
+        state_id, self._steps, external, contact_mean = state
+        self._contact_mean = contact_mean.copy()
         self._external = dict(external)
         pybullet.restoreState(stateId=state_id, **self._call)
         self._read()
