@@ -103,15 +103,9 @@ def test_stands_three_seconds_with_all_joints_held(backend: PhysicsBackend) -> N
     assert sum(backend.contact_forces()) == pytest.approx(4.6071 * 9.81, rel=0.1)
 
 
-def test_contact_forces_are_the_control_periods_mean_so_they_carry_the_weight(
-    backend: PhysicsBackend,
-) -> None:
-    """Stepping in place for 4 s (each leg lifted in turn, four steps a second), the feet's
-    reported normal forces, one reading per control period, average to the robot's weight
-    within 1 %: the ground carries it on average, and a period's mean force is its impulse
-    over the period. The last physics step's force instead read 2.9 % (MuJoCo, 16 steps a
-    period) and 2.4 % (PyBullet, 2) heavy here, and 9-21 % heavy during the stored walks,
-    where the load chatters between steps; ODE takes one step a period, the same either way."""
+def _mean_support_while_stepping(backend: PhysicsBackend) -> float:
+    """The feet's summed contact force, one reading per control period, averaged over 4 s of
+    stepping in place (each leg lifted 25° in turn, four steps a second) after 1 s standing."""
     robot, period = backend.robot, backend.settings.control_period
     rest = robot.rest_angles
     for _ in range(50):  # settle standing
@@ -131,7 +125,31 @@ def test_contact_forces_are_the_control_periods_mean_so_they_carry_the_weight(
         backend.step(targets)
         total += float(np.sum(backend.contact_forces()))
     assert _tilt_degrees(backend) < 20  # still upright: the ground carried it throughout
-    assert total / steps == pytest.approx(robot.total_mass * 9.81, rel=0.01)
+    return total / steps
+
+
+def test_contact_forces_are_the_control_periods_mean_so_they_carry_the_weight(
+    backend: PhysicsBackend,
+) -> None:
+    """Stepping in place, the feet's reported normal forces average to the robot's weight
+    within 1 %: the ground carries it on average, and a period's mean force is its impulse
+    over the period. The last physics step's force instead read 2.9 % (MuJoCo, 16 steps a
+    period) and 2.4 % (PyBullet, 2) heavy here, and 9-21 % heavy during the stored walks,
+    where the load chatters between steps; ODE takes one step a period, the same either way."""
+    weight = backend.robot.total_mass * 9.81
+    assert _mean_support_while_stepping(backend) == pytest.approx(weight, rel=0.01)
+
+
+@needs_ode
+def test_ode_reports_the_mean_over_several_physics_steps_too() -> None:
+    """At substeps=2 (not the server's one step a period) ODE's reading is the mean of its
+    two steps' forces, and it carries the weight as the other engines do."""
+    sim = registry().physics_backend("ode").factory(nao(), PhysicsSettings(substeps=2))
+    try:
+        weight = sim.robot.total_mass * 9.81
+        assert _mean_support_while_stepping(sim) == pytest.approx(weight, rel=0.01)
+    finally:
+        sim.close()
 
 
 def test_mujoco_touch_sensors_hold_every_contact_of_the_feet() -> None:
