@@ -173,12 +173,10 @@ class MujocoBackend(PhysicsBackend):
         self._root_position = self.data.qpos[0:3]
         self._root_quaternion = self.data.qpos[3:7]
         self._rotation = np.zeros(9)
-        self._feet = [self.model.body(name).id for name in robot.contact_bodies]
         self._bad = self.data.warning[mujoco.mjtWarning.mjWARN_BADQACC]
         #: each foot's touch sensor in sensordata (the sensors are the feet's, in order)
         self._touch = self.data.sensordata[: len(robot.contact_bodies)]
-        #: the feet's normal forces, summed over a control period's physics steps, then its mean
-        self._contact_sum = np.zeros(len(robot.contact_bodies))
+        #: the feet's normal forces, the mean over the last control period's physics steps
         self._contact_mean = np.zeros(len(robot.contact_bodies))
         self._renderer: mujoco.Renderer | None = None
         self._camera = mujoco.MjvCamera()
@@ -199,12 +197,12 @@ class MujocoBackend(PhysicsBackend):
         servo_velocities(joint_targets, self._angles, self.settings, self._command)
         self.data.ctrl[:] = self._command
         unstable_before = self._bad.number
-        total = self._contact_sum
-        total[:] = 0.0
+        mean = self._contact_mean
+        mean[:] = 0.0
         for _ in range(self._substeps):
             mujoco.mj_step(self.model, self.data)
-            total += self._touch
-        np.divide(total, self._substeps, out=self._contact_mean)
+            mean += self._touch
+        mean /= self._substeps
         if self._bad.number != unstable_before:
             raise EvaluationError(
                 f"MuJoCo simulation became unstable at t = {self.data.time:.3f} s"
