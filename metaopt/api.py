@@ -117,16 +117,17 @@ def minimize(
     seed: int | None = None,
     target: float | None = None,
     store: str | Path | None = None,
-    start: Sequence[float] | None = None,
+    start: Sequence[float] | Sequence[Sequence[float]] | None = None,
     start_spread: float = 0.05,
     **params: Any,
 ) -> Result:
     """Minimize f(x) over the box ``bounds`` with ``budget`` evaluations of f.
 
     ``params`` are the optimizer's parameters (``metaopt list``). The run stops early once a
-    fitness at or below ``target`` is found. With ``start`` (a point inside the bounds) the
-    optimizer's random initial population is that point and points drawn within
-    ±``start_spread`` of each range around it (a warm start, metaopt.warm_start). f may raise
+    fitness at or below ``target`` is found. With ``start`` (a point inside the bounds, or a
+    sequence of points) the optimizer's random initial population is that point and points
+    drawn within ±``start_spread`` of each range around it (around each point in turn: a warm
+    start, metaopt.warm_start). f may raise
     or return NaN for a point it cannot evaluate: that evaluation counts as failed and the run
     goes on (RunFailed, naming the first error, when the first ten or all of them fail).
     With ``store`` the run is kept in that run store under the problem name
@@ -140,8 +141,8 @@ def _settings(
     target: float | None, start: Sequence[float] | None, start_spread: float
 ) -> RunSettings:
     """minimize's and maximize's stopping target and warm start as run settings."""
-    point = None if start is None else [float(value) for value in np.ravel(start)]
-    return RunSettings(target=target, start=point, start_spread=start_spread)
+    points = None if start is None else np.atleast_2d(np.asarray(start, dtype=float)).tolist()
+    return RunSettings(target=target, start=points, start_spread=start_spread)
 
 
 def maximize(
@@ -153,7 +154,7 @@ def maximize(
     seed: int | None = None,
     target: float | None = None,
     store: str | Path | None = None,
-    start: Sequence[float] | None = None,
+    start: Sequence[float] | Sequence[Sequence[float]] | None = None,
     start_spread: float = 0.05,
     **params: Any,
 ) -> Result:

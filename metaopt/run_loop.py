@@ -77,14 +77,19 @@ class RunSettings:
     common_seeds: bool = False
     #: stop once a fitness this good is found: at or below it (minimize), at or above (maximize)
     target: float | None = None
-    #: warm start (metaopt.warm_start): the run's first start_points candidates are this point
-    #: and points drawn within ±start_spread of each range around it, in place of the
-    #: optimizer's first asks (0 points = the optimizer's initial population); None = none
-    start: list[float] | None = None
+    #: warm start (metaopt.warm_start): the run's first start_points candidates are these
+    #: points and points drawn within ±start_spread of each range around them in turn, in
+    #: place of the optimizer's first asks (0 points = the optimizer's initial population);
+    #: None = none. One point may be given flat (as runs stored before several could be).
+    start: list[list[float]] | None = None
     start_spread: float = 0.05
     start_points: int = 0
-    #: where the start point came from (a stored candidate's name, a run), for people
+    #: where the start points came from (stored candidates' names, runs), for people
     start_from: str | None = None
+
+    def __post_init__(self) -> None:
+        if self.start is not None and all(isinstance(v, int | float) for v in self.start):
+            self.start = [list(self.start)]
 
     def check(self, budget: int) -> None:
         """ConfigError naming the bad setting."""
@@ -219,8 +224,15 @@ def _with_start_points(spec: RunSpec, space: Space, optimizer: Optimizer) -> Run
     settings = spec.settings
     if settings.start is None:
         return spec
-    check_start(space, settings.start)
+    for point in settings.start:
+        check_start(space, point)
     count = settings.start_points or optimizer.initial_population
+    if count < len(settings.start):
+        given = "asked for" if settings.start_points else "the optimizer's initial population"
+        raise ConfigError(
+            f"{len(settings.start)} points to start from but {count} start points ({given}); "
+            "start from fewer points or ask for at least as many start points"
+        )
     return replace(spec, settings=replace(settings, start_points=count))
 
 

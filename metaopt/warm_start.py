@@ -1,6 +1,6 @@
-"""Warm starts: a run's first candidates drawn around a known point (a found gait, another
-run's best) instead of the optimizer's random first ones, so a search can refine, in a harder
-setting, what an easier one found."""
+"""Warm starts: a run's first candidates drawn around known points (a found gait, other runs'
+bests) instead of the optimizer's random first ones, so a search can refine, in a harder
+setting, what an easier one found, or choose among what several easier ones found."""
 
 from __future__ import annotations
 
@@ -38,13 +38,16 @@ def check_start(space: Space, point: Sequence[float]) -> None:
 
 
 def start_points(
-    space: Space, point: Sequence[float], spread: float, count: int, seed: int
+    space: Space, points: Sequence[Sequence[float]], spread: float, count: int, seed: int
 ) -> np.ndarray:
-    """``count`` candidates, shape (count, dim): the point itself, then points drawn uniformly
-    within ±spread of each variable's range around it, clipped to the bounds. The same
-    (point, spread, count, seed) always gives the same points."""
-    center = np.asarray(point, dtype=float)
+    """``count`` candidates, shape (count, dim): the given points themselves, then points drawn
+    uniformly within ±spread of each variable's range around them in turn (the first, the
+    second, ..., the first again), clipped to the bounds. The same (points, spread, count,
+    seed) always gives the same candidates; one point gives what it gave before several could
+    be given."""
+    centers = np.asarray(points, dtype=float).reshape(-1, space.dim)
     rng = np.random.default_rng([seed, START_STREAM])
-    offsets = (2.0 * rng.random((max(count - 1, 0), space.dim)) - 1.0) * spread * space.width
-    around = space.repair(center + offsets, "clip")
-    return np.concatenate([center[None, :], around])[:count]
+    drawn = max(count - len(centers), 0)
+    offsets = (2.0 * rng.random((drawn, space.dim)) - 1.0) * spread * space.width
+    around = space.repair(centers[np.arange(drawn) % len(centers)] + offsets, "clip")
+    return np.concatenate([centers, around])[:count]

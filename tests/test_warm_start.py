@@ -29,6 +29,36 @@ def test_start_points_are_the_point_then_a_box_around_it_inside_the_bounds() -> 
     assert not np.array_equal(points, start_points(SPACE, point, 0.05, 50, seed=4))
 
 
+def test_several_start_points_come_first_then_boxes_around_each_in_turn() -> None:
+    points = [[4.0, 4.0, 4.0, 4.0], [-4.0, -4.0, -4.0, -4.0], [0.0, 0.0, 0.0, 0.0]]
+    drawn = start_points(SPACE, points, 0.05, 20, seed=3)
+    assert drawn.shape == (20, 4) and drawn[:3].tolist() == points
+    for index, row in enumerate(drawn[3:]):
+        assert np.all(np.abs(row - points[index % 3]) <= 0.5 + 1e-12)  # the box around it
+        assert not np.array_equal(row, points[index % 3])
+    # One point, given alone or as a list of one, gives the candidates it always gave.
+    np.testing.assert_array_equal(
+        start_points(SPACE, points[0], 0.05, 9, seed=3), start_points(SPACE, points[:1], 0.05, 9, 3)
+    )
+
+
+def test_a_run_stored_with_one_flat_start_point_reads_as_a_list_of_one() -> None:
+    """Runs stored before several start points could be given keep resuming alike."""
+    assert RunSettings(**{"start": [1.0, 2.0]}).start == [[1.0, 2.0]]
+    assert RunSettings(start=[[1.0, 2.0], [3.0, 4.0]]).start == [[1.0, 2.0], [3.0, 4.0]]
+
+
+def test_minimize_from_several_points_evaluates_each_first(tmp_path) -> None:
+    starts = [[1.0, 1.0], [-2.0, 3.0]]
+    result = metaopt.minimize(lambda x: float(np.sum(x**2)), [(-5, 5)] * 2, budget=40, seed=2,
+                              start=starts, store=tmp_path / "runs.db")  # fmt: skip
+    with RunStore(tmp_path / "runs.db") as store:
+        xs = [e.x.tolist() for e in store.evaluations(result.run_id)]
+    assert xs[:2] == starts
+    with pytest.raises(ConfigError, match="3 points to start from but 2 start points"):
+        metaopt.minimize(sum, [(-5, 5)] * 2, budget=30, start=[[0, 0], [1, 1], [2, 2]], hms=2)
+
+
 def _sphere_run(store, optimizer="hs", seed=1, budget=200, start=None, points=0, **params):
     plugins = registry()
     settings = RunSettings(start=start, start_points=points, start_spread=0.1)
@@ -155,3 +185,27 @@ def test_run_start_from_a_candidate_of_other_variables_is_one_line(tmp_path) -> 
     assert other.returncode == 2
     assert "is a candidate of 'nao-walk', not of 'sphere'" in other.stderr
     assert not (tmp_path / "metaopt.db").exists()  # nothing written for a refused run
+
+
+def test_run_start_from_several_runs_evaluates_each_best_first(tmp_path) -> None:
+    """`--start-from A --start-from B`: each run's best is a first candidate, the optimizer's
+    initial population is drawn around them in turn, and `show` names both."""
+    db = "runs.db"
+    for seed in ("1", "2"):
+        made = metaopt_cli("run", "-o", "hs", "-p", "sphere", "--budget", "30", "--seed", seed,
+                           "--db", db, cwd=tmp_path)  # fmt: skip
+        assert made.returncode == 0, made.stderr
+    result = metaopt_cli("run", "-o", "hs", "-p", "sphere", "--budget", "30", "--seed", "3",
+                         "--start-from", "1", "--start-from", "2", "--db", db,
+                         cwd=tmp_path)  # fmt: skip
+    assert result.returncode == 0, result.stderr
+    with RunStore(tmp_path / db) as store:
+        bests = [min(store.evaluations(r), key=lambda e: e.fitness).x for r in (1, 2)]
+        record = store.runs()[2]
+        xs = np.array([e.x for e in store.evaluations(record.id)])
+    np.testing.assert_array_equal(xs[:2], bests)
+    offsets = [np.abs(x - bests[i % 2]) / 10.24 for i, x in enumerate(xs[2:20])]
+    assert max(np.max(offset) for offset in offsets) <= 0.05 + 1e-12
+    assert record.settings["start_from"] == "run 1, run 2"
+    shown = metaopt_cli("show", str(record.id), "--db", db, cwd=tmp_path)
+    assert "started from run 1, run 2 (20 points within 0.05)" in shown.stdout

@@ -203,10 +203,11 @@ def list_plugins(name: str | None) -> None:
 @click.option(
     "--start-from",
     "start_from",
-    default=None,
+    multiple=True,
     metavar="RUN|NAME",
     help="Warm start: the first candidates are this run's best (in --db) or stored candidate "
-    "and points around it, instead of the optimizer's random ones.",
+    "and points around it, instead of the optimizer's random ones. Repeat it to start from "
+    "several, with points around each in turn (the optimizer then chooses among them).",
 )
 @click.option(
     "--start-spread",
@@ -236,7 +237,7 @@ def run_command(
     common_seeds: bool,
     time_limit: float | None,
     target: float | None,
-    start_from: str | None,
+    start_from: tuple[str, ...],
     start_spread: float,
     start_points: int,
     executor: str | None,
@@ -250,9 +251,8 @@ def run_command(
     optimizer_info = plugins.optimizer(optimizer_name)
     problem_info = plugins.problem(problem_name)
     optimizer_params, problem_params = split_settings(settings, optimizer_info, problem_info)
-    start = None
-    if start_from is not None:
-        start = find_start(start_from, problem_info, problem_params, plugins.problems, db_path)
+    starts = [find_start(target, problem_info, problem_params, plugins.problems, db_path)
+              for target in start_from]  # fmt: skip
     spec = RunSpec(
         optimizer=optimizer_name,
         problem=problem_name,
@@ -268,10 +268,10 @@ def run_command(
             time_limit,
             common_seeds=common_seeds,
             target=target,
-            start=None if start is None else [float(value) for value in start.x],
+            start=[[float(value) for value in start.x] for start in starts] or None,
             start_spread=start_spread,
             start_points=start_points,
-            start_from=None if start is None else start.label,
+            start_from=", ".join(start.label for start in starts) or None,
         ),
     )
     spec.settings.check(spec.budget)
