@@ -379,6 +379,7 @@ class _Session:
         try:
             with stop_on_sigterm():
                 if self.settings.mode == "sync":
+                    self._warn_of_waiting_workers(executor)
                     self._run_sync(executor, progress)
                 else:
                     self._run_async(executor, progress)
@@ -402,6 +403,25 @@ class _Session:
             self.store.flush(checkpoint=final)
             self.store.finish_run(self.run_id, status, time.perf_counter() - started, message)
         return self._result(status, time.perf_counter() - started)
+
+    def _warn_of_waiting_workers(self, executor: Executor) -> None:
+        """SettingWarning when a sync batch has fewer evaluations than the executor has
+        workers: the others wait at every batch (HS asks one candidate at a time)."""
+        batch = self.settings.batch or self.optimizer.batch_size
+        tasks, workers = batch * self.resample, executor.workers
+        if tasks < workers:
+            wanted = -(-workers // self.resample)
+            candidates = f"{batch} candidate{'s' if batch > 1 else ''}"
+            each = f" of {self.resample} evaluations" if self.resample > 1 else ""
+            idle = workers - tasks
+            warnings.warn(
+                f"{self.spec.optimizer} asks {candidates} per batch{each}: {idle} of the "
+                f"{workers} workers {'waits' if idle == 1 else 'wait'} at every batch; ask for "
+                f"{wanted} per batch (--batch {wanted}; sync results depend on the batch, not "
+                "the workers) or run in --mode async",
+                SettingWarning,
+                stacklevel=2,
+            )
 
     def _run_sync(self, executor: Executor, progress: Progress | None) -> None:
         batch_size = self.settings.batch or self.optimizer.batch_size

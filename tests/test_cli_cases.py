@@ -246,10 +246,31 @@ def test_settings_that_cannot_work_as_meant_are_warned_in_one_line(tmp_path, arg
 def test_more_workers_than_cores_is_warned_in_one_line(tmp_path):
     env = {"METAOPT_LOAD_PLUGINS": "harmony_search,functions,executors"}
     done = metaopt_cli("run", "-o", "hs", "-p", "sphere", "--budget", "30", "--workers", "3",
-                       "--executor", "process", cwd=tmp_path, env=env)  # fmt: skip
+                       "--batch", "3", "--executor", "process", cwd=tmp_path, env=env)  # fmt: skip
     assert done.returncode == 0, done.stderr
     warnings = [line for line in done.stderr.splitlines() if line.startswith("Warning: ")]
     assert len(warnings) == 1 and f"--workers 3 on {os.cpu_count()} cores" in warnings[0]
+
+
+def test_workers_a_sync_batch_leaves_waiting_are_warned_in_one_line(tmp_path):
+    """HS asks one candidate per batch: a second worker would wait at every batch, unless the
+    batch or the resampling fills it."""
+    env = {"METAOPT_LOAD_PLUGINS": "harmony_search,functions,executors"}
+    base = ["run", "-o", "hs", "-p", "sphere", "--budget", "60", "--workers", "2", "--executor",
+            "process"]  # fmt: skip
+    warned = {}
+    for extra in ([], ["--batch", "2"], ["--resample", "2"], ["--mode", "async"]):
+        done = metaopt_cli(*base, *extra, cwd=tmp_path, env=env)
+        assert done.returncode == 0, done.stderr
+        warned[" ".join(extra)] = [
+            line for line in done.stderr.splitlines() if line.startswith("Warning: ")
+        ]
+    assert warned[""] == [
+        "Warning: hs asks 1 candidate per batch: 1 of the 2 workers waits at every batch; ask "
+        "for 2 per batch (--batch 2; sync results depend on the batch, not the workers) or run "
+        "in --mode async"
+    ]
+    assert not any(warned[key] for key in ("--batch 2", "--resample 2", "--mode async"))
 
 
 def test_pybullet_prints_no_build_time_line(tmp_path):
