@@ -2,14 +2,27 @@
 
 from __future__ import annotations
 
+import importlib.util
 import os
 import subprocess
 import sys
 from pathlib import Path
+from types import ModuleType
 
 import pytest
 
 FIXTURES = Path(__file__).parent / "fixtures"
+ROOT = Path(__file__).parents[1]
+
+
+def load_script(relative: str) -> ModuleType:
+    """A script of the repository (e.g. "scripts/engine_transfer.py") imported as a module, to
+    test its functions; it is registered under its file name so dataclasses in it work."""
+    path = ROOT / relative
+    spec = importlib.util.spec_from_file_location(path.stem, path)
+    module = sys.modules[path.stem] = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module
 
 
 def pip_install_isolated(target: Path, *sources: Path) -> Path:

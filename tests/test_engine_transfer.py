@@ -3,28 +3,16 @@ from a real run store's multi-engine evaluations."""
 
 from __future__ import annotations
 
-import importlib.util
-import sys
-from pathlib import Path
-
 import numpy as np
 import pytest
 
 from metaopt.store import RunStore
-from tests.conftest import metaopt_cli
-
-ROOT = Path(__file__).parents[1]
+from tests.conftest import load_script, metaopt_cli
 
 
 @pytest.fixture(scope="module")
 def transfer():
-    spec = importlib.util.spec_from_file_location(
-        "engine_transfer", ROOT / "scripts" / "engine_transfer.py"
-    )
-    module = importlib.util.module_from_spec(spec)
-    sys.modules["engine_transfer"] = module
-    spec.loader.exec_module(module)
-    return module
+    return load_script("scripts/engine_transfer.py")
 
 
 def test_rates_are_the_share_of_walkers_on_one_engine_that_walk_on_another(transfer) -> None:

@@ -2,23 +2,20 @@
 
 from __future__ import annotations
 
-import importlib.util
 import math
 import subprocess
 import sys
-from pathlib import Path
 
 import pytest
 
-SCRIPT = Path(__file__).parents[1] / "benchmarks" / "optimizer_quality.py"
+from tests.conftest import ROOT, load_script
+
+SCRIPT = ROOT / "benchmarks" / "optimizer_quality.py"
 
 
 @pytest.fixture(scope="module")
 def quality():
-    spec = importlib.util.spec_from_file_location("optimizer_quality", SCRIPT)
-    module = sys.modules["optimizer_quality"] = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
-    return module
+    return load_script("benchmarks/optimizer_quality.py")
 
 
 def test_the_counter_keeps_the_best_of_the_budget_and_refuses_one_call_more(quality):

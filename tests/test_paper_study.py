@@ -3,27 +3,18 @@ swing bounds, the rhythm of each cell's best gaits), on a real tiny experiment."
 
 from __future__ import annotations
 
-import importlib.util
-import sys
 from pathlib import Path
 
 import pytest
 
-from tests.conftest import metaopt_cli
+from tests.conftest import ROOT, load_script, metaopt_cli
 
-ROOT = Path(__file__).parents[1]
 EXPERIMENTS = ROOT / "docs" / "paper-reproduction" / "experiments"
 
 
 @pytest.fixture(scope="module")
 def study():
-    spec = importlib.util.spec_from_file_location(
-        "paper_study", ROOT / "scripts" / "paper_study.py"
-    )
-    module = importlib.util.module_from_spec(spec)
-    sys.modules["paper_study"] = module
-    spec.loader.exec_module(module)
-    return module
+    return load_script("scripts/paper_study.py")
 
 
 def test_the_study_files_are_valid_experiments() -> None:
