@@ -127,9 +127,9 @@ def minimize(
     fitness at or below ``target`` is found. With ``start`` (a point inside the bounds, or a
     sequence of points) the optimizer's random initial population is that point and points
     drawn within ±``start_spread`` of each range around it (around each point in turn: a warm
-    start, metaopt.warm_start). f may raise
-    or return NaN for a point it cannot evaluate: that evaluation counts as failed and the run
-    goes on (RunFailed, naming the first error, when the first ten or all of them fail).
+    start, metaopt.warm_start). f may raise or return NaN for a point it cannot evaluate: that
+    evaluation counts as failed and the run goes on (RunFailed, naming the first error, when
+    the first ten or all of them fail).
     With ``store`` the run is kept in that run store under the problem name
     ``python:<function name>``.
     """
@@ -138,7 +138,9 @@ def minimize(
 
 
 def _settings(
-    target: float | None, start: Sequence[float] | None, start_spread: float
+    target: float | None,
+    start: Sequence[float] | Sequence[Sequence[float]] | None,
+    start_spread: float,
 ) -> RunSettings:
     """minimize's and maximize's stopping target and warm start as run settings."""
     points = None if start is None else np.atleast_2d(np.asarray(start, dtype=float)).tolist()
