@@ -379,7 +379,6 @@ class _Session:
         try:
             with stop_on_sigterm():
                 if self.settings.mode == "sync":
-                    self._warn_of_waiting_workers(executor)
                     self._run_sync(executor, progress)
                 else:
                     self._run_async(executor, progress)
@@ -404,13 +403,12 @@ class _Session:
             self.store.finish_run(self.run_id, status, time.perf_counter() - started, message)
         return self._result(status, time.perf_counter() - started)
 
-    def _warn_of_waiting_workers(self, executor: Executor) -> None:
+    def _warn_of_waiting_workers(self, batch: int, workers: int) -> None:
         """SettingWarning when a sync batch has fewer evaluations than the executor has
         workers: the others wait at every batch (HS asks one candidate at a time)."""
-        batch = self.settings.batch or self.optimizer.batch_size
-        tasks, workers = batch * self.resample, executor.workers
+        tasks = batch * self.resample
         if tasks < workers:
-            wanted = -(-workers // self.resample)
+            wanted = math.ceil(workers / self.resample)
             candidates = f"{batch} candidate{'s' if batch > 1 else ''}"
             each = f" of {self.resample} evaluations" if self.resample > 1 else ""
             idle = workers - tasks
@@ -425,6 +423,7 @@ class _Session:
 
     def _run_sync(self, executor: Executor, progress: Progress | None) -> None:
         batch_size = self.settings.batch or self.optimizer.batch_size
+        self._warn_of_waiting_workers(batch_size, executor.workers)
         next_index = self.told_below
         while next_index < self.total and not self.target_reached:
             count = min(batch_size, (self.total - next_index) // self.resample)

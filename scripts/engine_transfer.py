@@ -19,6 +19,7 @@ from pathlib import Path
 import numpy as np
 
 from metaopt.store import RunStore
+from metaopt_problems.nao_walk.stored_gaits import ENGINES
 
 
 def walked(stores: Iterable[Path], engines: Sequence[str]) -> tuple[np.ndarray, np.ndarray]:
@@ -54,7 +55,7 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("stores", nargs="+", type=Path, help="run stores (SQLite files)")
     parser.add_argument("--threshold", type=float, nargs="+", default=[2.0, 4.0], help="m")
-    parser.add_argument("--engines", default="mujoco,pybullet,ode")
+    parser.add_argument("--engines", default=",".join(ENGINES))
     args = parser.parse_args()
     engines = args.engines.split(",")
     distance, fell = walked(args.stores, engines)
