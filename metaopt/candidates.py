@@ -1,5 +1,9 @@
-"""Finding a candidate by name: a problem's stored candidate (e.g. a nao-walk gait) or a run's
-best, for the commands that test one (robustness) or start from one (run --start-from)."""
+"""Finding a candidate by name: a problem's stored candidate (e.g. a nao-walk gait), a run's
+best (or its best few) or one candidate of a run, for the commands that test one (robustness) or
+start from one (run --start-from).
+
+Targets: ``NAME`` (a stored candidate), ``RUN`` (the run's best) and ``RUN:NUMBER`` (candidate
+NUMBER of the run, as ``metaopt robustness RUN --top K`` labels them)."""
 
 from __future__ import annotations
 
@@ -10,7 +14,7 @@ from typing import Any
 
 import numpy as np
 
-from metaopt.errors import ConfigError
+from metaopt.errors import ConfigError, StoreError
 from metaopt.params import resolve
 from metaopt.problem import ProblemInfo
 
@@ -28,31 +32,54 @@ class Candidate:
 def find_candidate(
     target: str, problems: Mapping[str, ProblemInfo], db_path: str
 ) -> tuple[Candidate, ProblemInfo]:
-    """``target`` as a candidate: a problem's stored candidate by name, else a run id in the
-    store at db_path, whose best candidate is taken (by its aggregate when it resampled)."""
+    """``target`` as one candidate: a problem's stored candidate by name, else a run id in the
+    store at db_path, whose best candidate is taken (by its aggregate when it resampled), or
+    ``RUN:NUMBER``, that run's candidate NUMBER."""
+    candidates, info = find_candidates(target, problems, db_path, 1)
+    return candidates[0], info
+
+
+def find_candidates(
+    target: str, problems: Mapping[str, ProblemInfo], db_path: str, top: int
+) -> tuple[list[Candidate], ProblemInfo]:
+    """``target``'s candidates: a stored candidate or ``RUN:NUMBER`` alone; for a run id, its
+    ``top`` best candidates with distinct decision vectors, best first (labelled ``run R``
+    when top is 1, else ``run R candidate N``, N being what ``RUN:N`` names)."""
     for info in problems.values():
         stored = info.stored_candidates() if info.stored_candidates else {}
         if target in stored:
             params = resolve(info.params, stored[target].params, info.name)
-            return Candidate(target, info.name, params, stored[target].x), info
-    from metaopt.replay import stored_best
+            return [Candidate(target, info.name, params, stored[target].x)], info
     from metaopt.store import RunStore
 
-    if not target.isdigit() or not Path(db_path).exists():
+    run_id, _, number = target.partition(":")
+    if not run_id.isdigit() or (number and not number.isdigit()) or not Path(db_path).exists():
         names = sorted(n for i in problems.values() if i.stored_candidates
                        for n in i.stored_candidates())  # fmt: skip
-        where = f"a run id in {db_path}" if Path(db_path).exists() else f"no store at {db_path}"
+        where = (
+            f"a run id or RUN:CANDIDATE in {db_path}"
+            if Path(db_path).exists()
+            else f"no store at {db_path}"
+        )
         raise ConfigError(
             f"{target!r} is neither a stored candidate ({', '.join(names) or 'none'}) nor "
             f"a run ({where})"
         )
     with RunStore(db_path) as store:
-        run, best = stored_best(store, target)
+        run = store.run(run_id)
+        one = [store.candidate(run, int(number))] if number else None
+        records = one or store.best_candidates(run, top)
+        if not records:
+            raise StoreError(f"run {run.id} has no successful evaluation")
     info = problems.get(run.problem)
     if info is None:
         raise ConfigError(f"run {run.id}'s problem {run.problem!r} is not installed")
     params = resolve(info.params, run.problem_params, info.name)
-    return Candidate(f"run {run.id}", info.name, params, np.asarray(best.x)), info
+    label = f"run {run.id}" if top == 1 and not number else None
+    return [
+        Candidate(label or f"run {run.id} candidate {r.number}", info.name, params, r.x)
+        for r in records
+    ], info
 
 
 def find_start(

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import inspect
 import math
+import statistics
 import time
 from collections.abc import Sequence
 from typing import Any
@@ -342,6 +343,34 @@ def robustness_table(
             cells.append(f"{value:.0%}" if metric.startswith("fell") else f"{value:.3f}")
         seeds = f"{len(result.samples)}" + (f" ({result.failed} failed)" if result.failed else "")
         table.add_row(result.cell, result.engine, seeds, *cells)
+    return table
+
+
+def robustness_ranking(ranked: Sequence, version: str, metrics: Sequence[str]) -> Table:
+    """`metaopt robustness` with several candidates: best first, each with its score (the
+    worst engine's mean fitness over the table) and, per engine over the whole table, the
+    mean fitness, the first metric's median and the rates."""
+    from metaopt.robustness import whole_table
+
+    rates = [m for m in metrics if m.startswith("fell")]
+    table = Table(title=f"candidates ranked over perturbation table {version}",
+                  title_justify="left")  # fmt: skip
+    for name in ("rank", "candidate", "score", "engine", "fitness (mean)",
+                 f"{metrics[0]} (median)", *rates):  # fmt: skip
+        table.add_column(name, justify="left" if name in ("candidate", "engine") else "right")
+    for number, entry in enumerate(ranked, start=1):
+        if number > 1:
+            table.add_section()
+        for row, total in enumerate(whole_table(entry.results)):
+            mean = statistics.fmean(total.fitnesses) if total.fitnesses else math.nan
+            first = (
+                (str(number), entry.candidate.label, f"{entry.score:.3f}")
+                if row == 0
+                else ("", "", "")
+            )
+            speed = total.summary(metrics[0])[0]
+            table.add_row(*first, total.engine, f"{mean:.3f}", f"{speed:.3f}",
+                          *(f"{total.summary(m)[0]:.0%}" for m in rates))  # fmt: skip
     return table
 
 

@@ -65,12 +65,14 @@ class PerturbationTable:
 
 @dataclass
 class CellResult:
-    """One (cell, engine): the N evaluations' metrics (failed ones counted apart)."""
+    """One (cell, engine): the N evaluations' metrics and fitnesses, in the same order (failed
+    ones counted apart)."""
 
     cell: str
     engine: str
     samples: list[dict[str, float]]
     failed: int
+    fitnesses: list[float] = field(default_factory=list)
 
     def summary(self, metric: str) -> tuple[float, float, float]:
         """summarize() of a metric over this cell's evaluations."""
@@ -150,6 +152,7 @@ def evaluate(
             result.failed += 1
         else:
             result.samples.append(outcome.metrics)
+            result.fitnesses.append(outcome.fitness)
     return list(results.values())
 
 
@@ -164,30 +167,71 @@ def whole_table(results: Sequence[CellResult]) -> list[CellResult]:
     for result in results:
         row = pooled.setdefault(result.engine, CellResult(WHOLE_TABLE, result.engine, [], 0))
         row.samples.extend(result.samples)
+        row.fitnesses.extend(result.fitnesses)
         row.failed += result.failed
     return list(pooled.values())
+
+
+def differing_params(candidates: Sequence[Candidate], table: PerturbationTable) -> list[str]:
+    """The problem parameters the candidates do not share, beyond those the table sets for all
+    (its common settings) and the engine: where a ranking may compare unlike fitnesses."""
+    fixed = {*table.common, "backend"}
+    names = sorted({name for c in candidates for name in c.params} - fixed)
+    return [
+        name for name in names
+        if len({repr(c.params.get(name)) for c in candidates}) > 1
+    ]  # fmt: skip
+
+
+@dataclass
+class Ranked:
+    """A candidate's table and its score: the worst engine's mean fitness over the whole
+    table (a failed evaluation counts as the worst)."""
+
+    candidate: Candidate
+    results: list[CellResult]
+    score: float
+
+
+def rank(tables: Sequence[tuple[Candidate, list[CellResult]]], maximize: bool) -> list[Ranked]:
+    """Candidates best first by their worst engine's mean fitness over the whole table: the
+    mean counts every fall at its fitness's price, the worst engine asks for one candidate
+    that holds on all. Ties keep the given order."""
+    sign = 1.0 if maximize else -1.0
+    ranked = []
+    for candidate, results in tables:
+        means = [
+            sign * statistics.fmean(row.fitnesses) if row.fitnesses and not row.failed
+            else -math.inf
+            for row in whole_table(results)
+        ]  # fmt: skip
+        ranked.append(Ranked(candidate, results, sign * min(means)))
+    return sorted(ranked, key=lambda r: -sign * r.score)
 
 
 CSV_COLUMNS = ("table_version", "candidate", "cell", "engine", "seeds", "failed")
 
 
 def write_csv(
-    path: Path, candidate: Candidate, table: PerturbationTable, results: Sequence[CellResult]
+    path: Path,
+    table: PerturbationTable,
+    tables: Sequence[tuple[Candidate, Sequence[CellResult]]],
 ) -> None:
-    """One row per (cell, engine): the table's version, then each metric's median and
-    quartiles (a rate: its value)."""
+    """One row per candidate, cell and engine: the table's version, then each metric's median
+    and quartiles (a rate: its value). Written whole or not at all."""
     header = list(CSV_COLUMNS)
     for metric in table.metrics:
         header += [metric] if metric.startswith("fell") else [
             f"{metric}_median", f"{metric}_q25", f"{metric}_q75"]  # fmt: skip
     rows = []
-    for result in results:
-        row: list[Any] = [table.version, candidate.label, result.cell, result.engine,
-                          len(result.samples) + result.failed, result.failed]  # fmt: skip
-        for metric in table.metrics:
-            median, low, high = result.summary(metric)
-            row += [median] if metric.startswith("fell") else [median, low, high]
-        rows.append(row)
+    for candidate, results in tables:
+        for result in results:
+            row: list[Any] = [table.version, candidate.label, result.cell, result.engine,
+                              len(result.samples) + result.failed, result.failed]  # fmt: skip
+            for metric in table.metrics:
+                median, low, high = result.summary(metric)
+                row += [median] if metric.startswith("fell") else [median, low, high]
+            rows.append(row)
     partial = path.with_name(path.name + ".partial")
     with partial.open("w", newline="", encoding="utf-8") as handle:
         writer = csv.writer(handle)

@@ -500,29 +500,53 @@ class RunStore:
         """The run's best candidate under its sense by the aggregate over its samples (as the
         optimizer saw it; a candidate with a failed or missing sample does not count), or None.
         Without resampling, the best evaluation."""
-        resample = int(run.settings.get("resample", 1))
-        if resample == 1:
+        if int(run.settings.get("resample", 1)) == 1:
             best = self.best_evaluation(run)
             if best is None:
                 return None
             return CandidateRecord(best.candidate, best.x, best.fitness, best.metrics, [best])
+        return next(iter(self.best_candidates(run, 1)), None)
+
+    def best_candidates(self, run: RunRecord, count: int) -> list[CandidateRecord]:
+        """The run's ``count`` best candidates with distinct decision vectors, best first (by
+        the aggregate over their samples, as best_candidate ranks them; ties: the earlier
+        candidate first). For re-checking the top of a run, whose best is the luckiest of many
+        noisy scores."""
+        sign = -1.0 if run.sense == "maximize" else 1.0
+        ranked = sorted(self._complete_candidates(run), key=lambda c: (sign * c.fitness, c.number))
+        chosen: dict[bytes, CandidateRecord] = {}
+        for candidate in ranked:
+            chosen.setdefault(candidate.x.tobytes(), candidate)
+            if len(chosen) == count:
+                break
+        return list(chosen.values())
+
+    def candidate(self, run: RunRecord, number: int) -> CandidateRecord:
+        """Candidate ``number`` of the run with its samples' aggregate (StoreError when the run
+        has no such candidate with all its samples successful)."""
+        for candidate in self._complete_candidates(run):
+            if candidate.number == number:
+                return candidate
+        raise StoreError(f"run {run.id} has no candidate {number} with all its samples successful")
+
+    def _complete_candidates(self, run: RunRecord) -> Iterator[CandidateRecord]:
+        """Every candidate of the run whose samples all succeeded, with their aggregate."""
+        resample = int(run.settings.get("resample", 1))
+        aggregate = run.settings.get("aggregate", "mean")
         by_candidate: dict[int, list[EvaluationRecord]] = {}
         for evaluation in self.evaluations(run.id):
             by_candidate.setdefault(evaluation.candidate, []).append(evaluation)
-        sign = -1.0 if run.sense == "maximize" else 1.0
-        aggregate = run.settings.get("aggregate", "mean")
-        best: tuple[float, int, list[EvaluationRecord]] | None = None
         for number, samples in by_candidate.items():
             if len(samples) != resample or any(e.fitness is None for e in samples):
                 continue
-            fitness = aggregate_fitness([e.fitness for e in samples], aggregate)
-            if best is None or sign * fitness < sign * best[0]:
-                best = (fitness, number, samples)
-        if best is None:
-            return None
-        fitness, number, samples = best  # metrics are combined for this candidate only
-        metrics = aggregate_metrics([e.metrics for e in samples], aggregate)
-        return CandidateRecord(number, samples[0].x, fitness, metrics, samples, aggregate)
+            yield CandidateRecord(
+                number,
+                samples[0].x,
+                aggregate_fitness([e.fitness for e in samples], aggregate),
+                aggregate_metrics([e.metrics for e in samples], aggregate),
+                samples,
+                aggregate,
+            )
 
     def best_evaluation(self, run: RunRecord) -> EvaluationRecord | None:
         """The best successful evaluation of a run under its sense, or None."""

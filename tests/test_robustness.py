@@ -11,9 +11,17 @@ import numpy as np
 import pytest
 
 from metaopt import ConfigError
-from metaopt.candidates import Candidate, find_candidate
+from metaopt.candidates import Candidate, find_candidate, find_candidates
 from metaopt.plugins import registry
-from metaopt.robustness import CellResult, Perturbation, select_cells, tasks, whole_table
+from metaopt.robustness import (
+    CellResult,
+    Perturbation,
+    rank,
+    select_cells,
+    tasks,
+    whole_table,
+)
+from metaopt.store import RunStore
 from metaopt_problems.nao_walk.robustness import STANDARD_TABLE
 from metaopt_problems.nao_walk.stored_gaits import gait_vector, load_gait
 from tests.conftest import metaopt_cli
@@ -167,3 +175,98 @@ def test_the_friction_cells_change_the_friction_the_engine_holds(engine: str) ->
     else:
         assert read[1.0] == pytest.approx(info.default_friction)
         assert read[0.7] == pytest.approx(0.7 * info.default_friction)
+
+
+def _cells(engine_fitnesses: dict[str, list[float]], failed: int = 0) -> list[CellResult]:
+    return [
+        CellResult(
+            "nominal", engine, [{} for _ in values], failed if engine == "e2" else 0, list(values)
+        )
+        for engine, values in engine_fitnesses.items()
+    ]
+
+
+def test_candidates_rank_by_their_worst_engines_mean_fitness() -> None:
+    """The score is the worst engine's mean over the table: a candidate fast on one engine and
+    falling (a low fitness) on another ranks below one that holds on both; a failed evaluation
+    makes its engine the worst; ties keep the given order; minimizing turns it round."""
+
+    def c(label: str) -> Candidate:
+        return Candidate(label, "p", {}, np.zeros(1))
+
+    tables = [
+        (c("one-engine"), _cells({"e1": [9.0, 9.0], "e2": [-3.0, 1.0]})),  # worst mean -1
+        (c("both"), _cells({"e1": [2.0, 2.0], "e2": [1.0, 2.0]})),  # worst mean 1.5
+        (c("failed"), _cells({"e1": [5.0], "e2": [5.0]}, failed=1)),
+        (c("tie"), _cells({"e1": [1.5, 1.5], "e2": [3.0, 3.0]})),  # 1.5, after "both"
+    ]
+    ranked = rank(tables, maximize=True)
+    assert [r.candidate.label for r in ranked] == ["both", "tie", "one-engine", "failed"]
+    assert [r.score for r in ranked[:3]] == [1.5, 1.5, -1.0] and ranked[3].score == -np.inf
+    minimized = rank(tables, maximize=False)  # worst = highest mean
+    assert [(r.candidate.label, r.score) for r in minimized[:3]] == [
+        ("both", 2.0), ("tie", 3.0), ("one-engine", 9.0)
+    ]  # fmt: skip
+
+
+@pytest.fixture(scope="module")
+def short_run(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """A store holding one short nao-walk run on MuJoCo (8 evaluations of 4 s episodes)."""
+    where = tmp_path_factory.mktemp("top")
+    made = metaopt_cli("run", "-o", "hs", "-p", "nao-walk", "--budget", "8", "--seed", "3",
+                       "--set", "duration=4", "--set", "lock=1", "--set", "backend=mujoco",
+                       "--set", "hms=4", "--db", "runs.db", cwd=where)  # fmt: skip
+    assert made.returncode == 0, made.stderr
+    return where
+
+
+def test_find_candidates_takes_a_runs_top_or_one_candidate_by_number(short_run: Path) -> None:
+    db = str(short_run / "runs.db")
+    with RunStore(db) as store:
+        run = store.run(1)
+        best = store.best_candidates(run, 3)
+        numbers = [r.number for r in best]
+    top, info = find_candidates("1", registry().problems, db, 3)
+    assert info.name == "nao-walk"
+    assert [c.label for c in top] == [f"run 1 candidate {n}" for n in numbers]
+    assert all(np.array_equal(c.x, r.x) for c, r in zip(top, best, strict=True))
+    (one,), _ = find_candidates(f"1:{numbers[2]}", registry().problems, db, 1)
+    assert one.label == f"run 1 candidate {numbers[2]}" and np.array_equal(one.x, best[2].x)
+    assert find_candidate("1", registry().problems, db)[0].label == "run 1"
+    for bad in ("1:x", "x:1"):
+        with pytest.raises(ConfigError, match="a run id or RUN:CANDIDATE"):
+            find_candidates(bad, registry().problems, db, 1)
+
+
+@pytest.mark.slow
+def test_robustness_top_ranks_a_runs_best_candidates_and_each_can_be_named(
+    short_run: Path,
+) -> None:
+    """`metaopt robustness RUN --top 3`: three candidates over the table, ranked, every one in
+    the CSV; `RUN:CANDIDATE` names one of them and gives the same figures (same seeds)."""
+    cells = ("--engines", "mujoco", "--seeds", "2", "--cells", "nominal,latency 1",
+             "--db", "runs.db")  # fmt: skip
+    top = metaopt_cli("robustness", "1", "--top", "3", *cells, "--csv", "top.csv",
+                      cwd=short_run)  # fmt: skip
+    assert top.returncode == 0, top.stderr
+    assert "x 3 candidates" in top.stdout and "candidates ranked" in top.stdout
+    rows = _rows(short_run / "top.csv")
+    labels = list(dict.fromkeys(r["candidate"] for r in rows))
+    assert len(labels) == 3 and all(label.startswith("run 1 candidate ") for label in labels)
+    assert len(rows) == 3 * 3  # two cells and the whole table each
+    ranked_first = top.stdout.index(labels[0])
+    assert ranked_first < top.stdout.index(labels[1]) < top.stdout.index(labels[2])
+    number = labels[1].rsplit(" ", 1)[1]
+    alone = metaopt_cli("robustness", f"1:{number}", *cells, "--csv", "one.csv", cwd=short_run)
+    assert alone.returncode == 0, alone.stderr
+    assert _rows(short_run / "one.csv") == [r for r in rows if r["candidate"] == labels[1]]
+    for args, message in (
+        (("1:999",), "run 1 has no candidate 999"),
+        (("1", "hs_walk", "--set", "fitness=paper"), None),
+    ):
+        result = metaopt_cli("robustness", *args, *cells, "--seeds", "1", cwd=short_run)
+        if message is None:  # a stored gait and a run of the same problem rank together
+            assert result.returncode == 0, result.stderr
+            assert "differ in" in result.stderr and "Traceback" not in result.stderr
+        else:
+            assert result.returncode == 2 and message in result.stderr

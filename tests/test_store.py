@@ -9,7 +9,7 @@ from metaopt import store as store_module
 from metaopt.store import FLUSH_INTERVAL, RunStore
 
 
-def _new_run(store: RunStore) -> int:
+def _new_run(store: RunStore, settings: dict | None = None) -> int:
     return store.create_run(
         optimizer="hs",
         optimizer_params={"hmcr": 0.9},
@@ -19,7 +19,7 @@ def _new_run(store: RunStore) -> int:
         budget=10,
         sense="minimize",
         space=[{"name": "x0", "lower": -1, "upper": 1, "description": ""}],
-        settings={"mode": "sync"},
+        settings=settings or {"mode": "sync"},
         versions={"python": "3"},
     )
 
@@ -121,3 +121,38 @@ def test_an_owners_heartbeat_is_renewed_and_a_silent_remote_claim_taken_over(tmp
         store._connection.execute(remote, (time.time() - store_module.OWNER_TIMEOUT - 1,))
         store.claim(run_id)  # a silent remote owner is taken as dead
         assert store.read("SELECT host FROM run_owners") == [(store_module.HOST,)]
+
+
+def test_a_runs_best_candidates_are_distinct_ranked_by_their_aggregate(tmp_path):
+    """best_candidates: the K best by the mean of each candidate's samples (a candidate with a
+    failed sample does not count), one per decision vector; candidate(run, N) reads one back;
+    best_candidate is the first of them."""
+    a, b, c, d = (np.full(1, v) for v in (0.1, 0.2, 0.3, 0.4))
+    with RunStore(tmp_path / "a.db") as store:
+        run_id = _new_run(store, {"mode": "sync", "resample": 2, "aggregate": "mean"})
+        samples = [  # (candidate, x, fitness): minimized
+            (0, a, 1.0),
+            (0, a, 5.0),  # mean 3
+            (1, b, 0.5),
+            (1, b, 0.7),  # mean 0.6: the best
+            (2, a, 2.0),
+            (2, a, 2.0),  # mean 2: the best with vector a
+            (3, c, 0.1),
+            (3, c, None),  # a failed sample: left out
+            (4, d, 1.5),
+            (4, d, 1.5),
+        ]
+        for index, (number, x, fitness) in enumerate(samples):
+            error = None if fitness is not None else "ValueError: boom"
+            store.add_evaluation(run_id, index, number, x, fitness, {"f": fitness or 0.0},
+                                 error, index, 0.0)  # fmt: skip
+    with RunStore(tmp_path / "a.db") as store:
+        run = store.run(run_id)
+        best = store.best_candidates(run, 3)
+        assert [(r.number, r.fitness) for r in best] == [(1, 0.6), (4, 1.5), (2, 2.0)]
+        assert [r.number for r in store.best_candidates(run, 10)] == [1, 4, 2]
+        assert store.best_candidate(run).number == 1
+        assert store.candidate(run, 0).fitness == 3.0
+        assert store.candidate(run, 0).metrics == {"f": 3.0}
+        with pytest.raises(StoreError, match="no candidate 3 with all its samples successful"):
+            store.candidate(run, 3)

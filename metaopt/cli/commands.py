@@ -204,9 +204,9 @@ def list_plugins(name: str | None) -> None:
     "--start-from",
     "start_from",
     multiple=True,
-    metavar="RUN|NAME",
-    help="Warm start: the first candidates are this run's best (in --db) or stored candidate "
-    "and points around it, instead of the optimizer's random ones. Repeat it to start from "
+    metavar="RUN|RUN:CANDIDATE|NAME",
+    help="Warm start: the first candidates are this run's best (in --db), one of its "
+    "candidates, or a stored candidate, and points around it, instead of the optimizer's random ones. Repeat it to start from "
     "several, with points around each in turn (the optimizer then chooses among them).",
 )
 @click.option(

@@ -1,14 +1,16 @@
-"""``metaopt robustness RUN|NAME``: a candidate over its problem's standard perturbation table
-on every installed engine (the work is in metaopt.robustness)."""
+"""``metaopt robustness RUN|NAME ...``: candidates over their problem's standard perturbation
+table on every installed engine, ranked when there are several (the work is in
+metaopt.robustness)."""
 
 from __future__ import annotations
 
+import warnings
 from pathlib import Path
 
 import click
 
 from metaopt import display, robustness
-from metaopt.candidates import Candidate, find_candidate
+from metaopt.candidates import Candidate, find_candidates
 from metaopt.cli.common import (
     MAX_INT64,
     build_executor,
@@ -18,14 +20,22 @@ from metaopt.cli.common import (
 )
 from metaopt.cli.compare import MAX_SEEDS
 from metaopt.cli.output import check_output_file
-from metaopt.errors import ConfigError
+from metaopt.errors import ConfigError, SettingWarning
 from metaopt.physics import engine_names
 from metaopt.plugins import registry
+from metaopt.problem import ProblemInfo, Sense
 from metaopt.settings import parse_problem_settings
 
 
 @click.command("robustness")
-@click.argument("target", metavar="RUN|NAME")
+@click.argument("targets", metavar="RUN|RUN:CANDIDATE|NAME...", nargs=-1, required=True)
+@click.option(
+    "--top",
+    type=click.IntRange(min=1, max=1000),
+    default=1,
+    show_default=True,
+    help="From each run, its K best candidates with distinct vectors, ranked over the table.",
+)
 @click.option("--engines", default=None, help="Engines joined by '+' [every installed one].")
 @click.option(
     "--seeds",
@@ -68,45 +78,95 @@ from metaopt.settings import parse_problem_settings
 @scheduling_options
 @db_option
 def robustness_command(
-    target: str, engines: str | None, seeds: int, seed: int, cells: str | None,
-    settings: tuple[str, ...], csv_path: Path | None, figure_path: Path | None,
-    executor: str | None, workers: int | None, scheduler: str | None, db_path: str,
+    targets: tuple[str, ...], top: int, engines: str | None, seeds: int, seed: int,
+    cells: str | None, settings: tuple[str, ...], csv_path: Path | None,
+    figure_path: Path | None, executor: str | None, workers: int | None, scheduler: str | None,
+    db_path: str,
 ) -> None:  # fmt: skip
-    """Evaluate a run's best candidate or a stored one (e.g. a nao-walk gait) over its
-    problem's standard perturbation table, on every engine, over N seeds per cell."""
+    """Evaluate candidates over their problem's standard perturbation table, on every engine,
+    over N seeds per cell: a run's best (or its --top K best), one of its candidates
+    (RUN:CANDIDATE) or a stored one (e.g. a nao-walk gait). Several are ranked by their worst
+    engine's mean fitness over the table; the best is shown cell by cell."""
     if csv_path is not None:
         check_output_file(str(csv_path), "--csv", suffix=".csv")
     if figure_path is not None:
         check_output_file(str(figure_path), "--figure", suffix=".png")
     plugins = registry()
-    candidate, info = find_candidate(target, plugins.problems, db_path)
+    candidates, info = _candidates(targets, top, plugins.problems, db_path)
     if info.perturbations is None:
         raise ConfigError(f"problem {info.name!r} has no perturbation table")
     changes = parse_problem_settings(settings, info)
-    candidate = Candidate(
-        candidate.label, candidate.problem, {**candidate.params, **changes}, candidate.x
-    )
+    candidates = [Candidate(c.label, c.problem, {**c.params, **changes}, c.x) for c in candidates]
     names = engine_names(engines) if engines is not None else tuple(plugins.physics_backends)
     for name in names:
         plugins.physics_backend(name)  # ConfigError listing the installed ones
     table = robustness.select_cells(
         info.perturbations, [c.strip() for c in cells.split(",")] if cells is not None else None
     )
-    robustness.tasks(candidate, info, table, names, seeds, seed)  # bad parameters: before work
+    for candidate in candidates:  # bad parameters: before any work
+        robustness.tasks(candidate, info, table, names, seeds, seed)
+    differ = robustness.differing_params(candidates, table)
+    if differ:
+        warnings.warn(
+            f"the candidates differ in {', '.join(differ)}: each is scored with its own, so "
+            "the ranking compares unlike fitnesses where these change the score (--set "
+            "NAME=VALUE sets one alike for all)",
+            SettingWarning,
+            stacklevel=1,
+        )
+    several = f" x {len(candidates)} candidates" if len(candidates) > 1 else ""
     console.print(f"perturbation table {table.version}: {len(table.cells)} cells x "
-                  f"{len(names)} engines x {seeds} seeds")  # fmt: skip
+                  f"{len(names)} engines x {seeds} seeds{several}")  # fmt: skip
     with build_executor(executor, workers, scheduler) as pool:
-        results = robustness.evaluate(candidate, info, table, names, seeds, seed, pool)
-    totals = robustness.whole_table(results)
+        tables = [
+            (c, robustness.evaluate(c, info, table, names, seeds, seed, pool)) for c in candidates
+        ]
+    ranked = robustness.rank(tables, _maximizes(info, candidates[0]))
+    if len(ranked) > 1:
+        console.print(display.robustness_ranking(ranked, table.version, table.metrics))
+    best = ranked[0]
+    totals = robustness.whole_table(best.results)
     console.print(
-        display.robustness_table(candidate.label, table.version, results, table.metrics, totals)
+        display.robustness_table(
+            best.candidate.label, table.version, best.results, table.metrics, totals
+        )
     )
     if csv_path is not None:
-        robustness.write_csv(csv_path, candidate, table, [*results, *totals])
+        robustness.write_csv(
+            csv_path, table,
+            [(r.candidate, [*r.results, *robustness.whole_table(r.results)]) for r in ranked],
+        )  # fmt: skip
         console.print(f"wrote {csv_path}")
     if figure_path is not None:
         from metaopt.plots import save_figure
 
         speed, fell = table.metrics[0], next(m for m in table.metrics if m.startswith("fell"))
-        save_figure(robustness.figure(candidate, table, results, speed, fell), figure_path)
+        save_figure(
+            robustness.figure(best.candidate, table, best.results, speed, fell), figure_path
+        )
         console.print(f"wrote {figure_path}")
+
+
+def _candidates(
+    targets: tuple[str, ...], top: int, problems: dict, db_path: str
+) -> tuple[list[Candidate], ProblemInfo]:
+    """Every target's candidates, all of one problem (a ranking compares like with like)."""
+    found = [find_candidates(target, problems, db_path, top) for target in targets]
+    info = found[0][1]
+    for target, (_, other) in zip(targets, found, strict=True):
+        if other.name != info.name:
+            raise ConfigError(
+                f"{target!r} is a candidate of {other.name!r}, {targets[0]!r} of "
+                f"{info.name!r}: rank candidates of one problem"
+            )
+    return [c for candidates, _ in found for c in candidates], info
+
+
+def _maximizes(info: ProblemInfo, candidate: Candidate) -> bool:
+    """Whether the candidate's problem is maximized (its instances say; building one is cheap:
+    engines are built on first use)."""
+    problem = info.factory(**candidate.params)
+    try:
+        return problem.sense == Sense.MAXIMIZE
+    finally:
+        problem.close()
