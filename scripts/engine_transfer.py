@@ -19,6 +19,7 @@ from pathlib import Path
 import numpy as np
 
 from metaopt.store import RunStore
+from metaopt_problems.nao_walk.gait_agreement import transfer_rates
 from metaopt_problems.nao_walk.stored_gaits import ENGINES
 
 
@@ -36,19 +37,6 @@ def walked(stores: Iterable[Path], engines: Sequence[str]) -> tuple[np.ndarray, 
                         rows.append([[metrics[d], metrics[f]] for d, f in keys])
     table = np.array(rows, dtype=float).reshape(-1, len(engines), 2)
     return table[:, :, 0], table[:, :, 1]
-
-
-def transfer_rates(distance: np.ndarray, fell: np.ndarray, threshold: float) -> np.ndarray:
-    """Matrix (A, B): the share of the episodes walking ``threshold`` m on A without a fall
-    that do so on B too (NaN where none walk on A); the diagonal holds the count on A."""
-    walks = (distance >= threshold) & (fell == 0)
-    counts = walks.sum(axis=0)
-    rates = np.full((walks.shape[1],) * 2, np.nan)
-    for a in range(walks.shape[1]):
-        if counts[a]:
-            rates[a] = walks[walks[:, a]].mean(axis=0)
-        rates[a, a] = counts[a]
-    return rates
 
 
 def main() -> None:

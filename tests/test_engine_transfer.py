@@ -7,6 +7,7 @@ import numpy as np
 import pytest
 
 from metaopt.store import RunStore
+from metaopt_problems.nao_walk.gait_agreement import transfer_rates
 from tests.conftest import load_script, metaopt_cli
 
 
@@ -15,17 +16,17 @@ def transfer():
     return load_script("scripts/engine_transfer.py")
 
 
-def test_rates_are_the_share_of_walkers_on_one_engine_that_walk_on_another(transfer) -> None:
+def test_rates_are_the_share_of_walkers_on_one_engine_that_walk_on_another() -> None:
     distance = np.array([[5.0, 5.0, 1.0], [5.0, 1.0, 5.0], [5.0, 5.0, 5.0], [1.0, 5.0, 5.0]])
     fell = np.array([[0, 0, 0], [0, 0, 0], [0, 1, 0], [0, 0, 0]])
-    rates = transfer.transfer_rates(distance, fell, 4.0)
+    rates = transfer_rates(distance, fell, 4.0)
     # Walking 4 m without a fall: engine 0 in episodes 0-2, engine 1 in 0 and 3 (it fell in
     # 2), engine 2 in 1-3.
     assert np.diag(rates).tolist() == [3, 2, 3]
     assert rates[0, 1] == pytest.approx(1 / 3) and rates[0, 2] == pytest.approx(2 / 3)
     assert rates[1, 0] == 0.5 and rates[1, 2] == 0.5
     assert rates[2, 0] == pytest.approx(2 / 3) and rates[2, 1] == pytest.approx(1 / 3)
-    assert np.isnan(transfer.transfer_rates(distance, fell, 9.0)[0, 1])  # nobody walks 9 m
+    assert np.isnan(transfer_rates(distance, fell, 9.0)[0, 1])  # nobody walks 9 m
 
 
 def test_the_store_is_read_back_per_engine(tmp_path, transfer) -> None:
