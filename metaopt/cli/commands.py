@@ -206,8 +206,9 @@ def list_plugins(name: str | None) -> None:
     multiple=True,
     metavar="RUN|RUN:CANDIDATE|NAME",
     help="Warm start: the first candidates are this run's best (in --db), one of its "
-    "candidates, or a stored candidate, and points around it, instead of the optimizer's random ones. Repeat it to start from "
-    "several, with points around each in turn (the optimizer then chooses among them).",
+    "candidates (RUN:CANDIDATE), or a stored candidate, and points around it, instead of the "
+    "optimizer's random ones. Repeat it to start from several, with points around each in "
+    "turn (the optimizer then chooses among them).",
 )
 @click.option(
     "--start-spread",
