@@ -209,3 +209,24 @@ def test_run_start_from_several_runs_evaluates_each_best_first(tmp_path) -> None
     assert record.settings["start_from"] == "run 1, run 2"
     shown = metaopt_cli("show", str(record.id), "--db", db, cwd=tmp_path)
     assert "started from run 1, run 2 (20 points within 0.05)" in shown.stdout
+
+
+def test_run_start_from_one_candidate_of_a_run(tmp_path) -> None:
+    """`--start-from RUN:CANDIDATE`: that candidate (not the run's best) is the first one."""
+    db = "runs.db"
+    made = metaopt_cli("run", "-o", "hs", "-p", "sphere", "--budget", "30", "--seed", "1",
+                       "--db", db, cwd=tmp_path)  # fmt: skip
+    assert made.returncode == 0, made.stderr
+    with RunStore(tmp_path / db) as store:
+        seventh = list(store.evaluations(1))[7]
+    result = metaopt_cli("run", "-o", "hs", "-p", "sphere", "--budget", "30", "--seed", "2",
+                         "--start-from", f"1:{seventh.candidate}", "--db", db,
+                         cwd=tmp_path)  # fmt: skip
+    assert result.returncode == 0, result.stderr
+    with RunStore(tmp_path / db) as store:
+        first = next(store.evaluations(2))
+        assert store.run(2).settings["start_from"] == f"run 1 candidate {seventh.candidate}"
+    np.testing.assert_array_equal(first.x, seventh.x)
+    missing = metaopt_cli("run", "-o", "hs", "-p", "sphere", "--budget", "30",
+                          "--start-from", "1:999", "--db", db, cwd=tmp_path)  # fmt: skip
+    assert missing.returncode == 2 and "run 1 has no candidate 999" in missing.stderr
