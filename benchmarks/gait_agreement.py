@@ -4,8 +4,11 @@ baseline): per engine how far the gaits walk, the rank correlation of their dist
 engines beside each engine's with itself, and how often a gait walking N m on one engine walks
 as far on another (docs/robustness.md, "Do the engines agree on gaits?").
 
-    python benchmarks/gait_agreement.py [--engines mujoco+pybullet+ode] [--workers 2]
+    python benchmarks/gait_agreement.py [--engines mujoco+pybullet+ode+ode@4] [--workers 2]
         [--threshold 3] [--sample FILE] [--limit N]
+
+An engine written NAME@N takes N physics steps a control period instead of its default (ode@4:
+ODE at 5 ms steps beside the server's one 20 ms step).
 """
 
 from __future__ import annotations
@@ -17,11 +20,11 @@ from pathlib import Path
 import numpy as np
 
 from metaopt.executors import Executor, SerialExecutor
-from metaopt.physics import engine_names
 from metaopt.plugins import registry
 from metaopt_problems.nao_walk.gait_agreement import (
     GaitSample,
     Walks,
+    engine_setups,
     rank_agreement,
     transfer_rates,
     twin_rates,
@@ -82,13 +85,18 @@ def _executor(workers: int) -> Executor:
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--engines", default=None, help="joined by '+' [every installed one]")
+    parser.add_argument(
+        "--engines", default=None, help="NAME or NAME@STEPS joined by '+' [every installed one]"
+    )
     parser.add_argument("--workers", type=int, default=2)
     parser.add_argument("--threshold", type=float, nargs="+", default=[3.0, 4.0], help="m")
     parser.add_argument("--sample", type=Path, default=SAMPLE)
     parser.add_argument("--limit", type=int, default=None, help="only the first N gaits")
     args = parser.parse_args()
-    engines = engine_names(args.engines) if args.engines else _installed()
+    try:
+        engines = engine_setups(args.engines or "+".join(_installed()))
+    except ValueError as error:
+        parser.error(str(error))
     sample = GaitSample.load(args.sample)
     if args.limit is not None:
         sample = GaitSample(sample.controller, sample.vectors[: args.limit],

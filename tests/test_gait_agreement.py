@@ -16,6 +16,7 @@ from metaopt_problems.nao_walk.gait_agreement import (
     TWIN_MASS_SCALE,
     GaitSample,
     Walks,
+    engine_setups,
     rank_agreement,
     twin_rates,
     walk,
@@ -62,14 +63,15 @@ def test_the_sample_walks_on_each_engine_as_its_own_episodes(tmp_path: Path) -> 
     small = tmp_path / "sample.json"
     small.write_text(json.dumps({**full, "gaits": full["gaits"][-2:]}), encoding="utf-8")
     sample = GaitSample.load(small)
-    engines = ("mujoco", "ode")
+    engines = engine_setups("mujoco+ode@2")
     walks = walk(sample, engines, SerialExecutor(), duration=6.0, lock=1.0)
+    assert walks.engines == ("mujoco", "ode@2")
     assert walks.distance.shape == walks.twin_distance.shape == (2, 2)
     info = registry().problem("nao-walk")
-    for k, engine in enumerate(engines):
+    for k, (engine, steps) in enumerate((("mujoco", 0), ("ode", 2))):
         for twin, scale in ((walks.twin_distance, TWIN_MASS_SCALE), (walks.distance, 1.0)):
-            problem = info.factory(controller="steered", backend=engine, duration=6.0,
-                                   lock=1.0, mass_scale=scale)  # fmt: skip
+            problem = info.factory(controller="steered", backend=engine, substeps=steps,
+                                   duration=6.0, lock=1.0, mass_scale=scale)  # fmt: skip
             try:
                 expected = problem.evaluate(sample.vectors[1], 0).metrics["distance"]
             finally:
@@ -78,4 +80,14 @@ def test_the_sample_walks_on_each_engine_as_its_own_episodes(tmp_path: Path) -> 
     again = walk(sample, engines, SerialExecutor(), duration=6.0, lock=1.0)
     assert np.array_equal(again.distance, walks.distance)
     report = load_script("benchmarks/gait_agreement.py").report(walks, [1.0])
-    assert "| mujoco | " in report and "then on ode" in report
+    assert "| mujoco | " in report and "then on ode@2" in report
+
+
+def test_engines_are_named_with_their_physics_steps() -> None:
+    assert engine_setups("mujoco+ode@4") == {
+        "mujoco": {"backend": "mujoco", "substeps": 0},
+        "ode@4": {"backend": "ode", "substeps": 4},
+    }
+    for bad in ("ode@x", "+ode", "ode@"):
+        with pytest.raises(ValueError, match="NAME@STEPS"):
+            engine_setups(bad)

@@ -14,7 +14,7 @@ over every episode a run store holds on several engines.
 from __future__ import annotations
 
 import json
-from collections.abc import Sequence
+from collections.abc import Mapping
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -62,15 +62,32 @@ class Walks:
     twin_fell: np.ndarray
 
 
-def walk(sample: GaitSample, engines: Sequence[str], executor: Executor, **params: object) -> Walks:
+def engine_setups(spec: str) -> dict[str, dict[str, object]]:
+    """Engines to walk on, joined by '+': a name (its default physics step) or NAME@N (N
+    physics steps a control period), each to the nao-walk parameters that choose it."""
+    setups: dict[str, dict[str, object]] = {}
+    for label in spec.split("+"):
+        name, at, steps = label.strip().partition("@")
+        if not name or (at and not steps.isdigit()):
+            raise ValueError(f"engine {label!r}: write NAME or NAME@STEPS, e.g. ode@4")
+        setups[label.strip()] = {"backend": name, "substeps": int(steps or 0)}
+    return setups
+
+
+def walk(
+    sample: GaitSample,
+    engines: Mapping[str, Mapping[str, object]],
+    executor: Executor,
+    **params: object,
+) -> Walks:
     """Every gait of the sample, one noise-free episode (seed 0) on each engine and its twin,
-    with nao-walk's defaults for the sample's controller and ``params``."""
+    with nao-walk's defaults for the sample's controller, ``params`` and each engine's own
+    parameters (``engines``: label to parameters, e.g. from engine_setups)."""
     info = registry().problem("nao-walk")
     plan = []
-    for engine in engines:
+    for own in engines.values():
         for mass_scale in (1.0, TWIN_MASS_SCALE):
-            given = {**params, "controller": sample.controller, "backend": engine,
-                     "mass_scale": mass_scale}  # fmt: skip
+            given = {**params, **own, "controller": sample.controller, "mass_scale": mass_scale}
             plan += [
                 EvaluationTask(len(plan) + i, x, 0, info.factory, given)
                 for i, x in enumerate(sample.vectors)
