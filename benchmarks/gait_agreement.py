@@ -37,13 +37,13 @@ SAMPLE = Path(__file__).parent / "data" / "gait_sample.json"
 
 def report(walks: Walks, thresholds: list[float]) -> str:
     """The figures as markdown tables."""
-    names = walks.engines
+    names, first = walks.engines, thresholds[0]
     lines = [
-        "| engine | median distance (m) | falls | walks 3 m |",
+        f"| engine | median distance (m) | falls | walks {first:g} m |",
         "|---|--:|--:|--:|",
     ]
     for k, name in enumerate(names):
-        walked = (walks.distance[:, k] >= 3.0) & (walks.fell[:, k] == 0)
+        walked = (walks.distance[:, k] >= first) & (walks.fell[:, k] == 0)
         lines.append(f"| {name} | {np.median(walks.distance[:, k]):.2f} | "
                      f"{walks.fell[:, k].mean():.0%} | {walked.mean():.0%} |")  # fmt: skip
     spearman = rank_agreement(walks)
@@ -60,9 +60,7 @@ def report(walks: Walks, thresholds: list[float]) -> str:
                   "| A | gaits | " + " | ".join(f"then on {n}" for n in names) + " |",
                   "|---|--:|" + "--:|" * len(names)]  # fmt: skip
         for a, name in enumerate(names):
-            cells = [
-                f"{twins[a]:.0%}" if b == a else f"{rates[a, b]:.0%}" for b in range(len(names))
-            ]
+            cells = [_share(twins[a] if b == a else rates[a, b]) for b in range(len(names))]
             lines.append(f"| {name} | {rates[a, a]:.0f} | " + " | ".join(cells) + " |")
     return "\n".join(lines)
 
