@@ -69,7 +69,7 @@ def test_failed_evaluations_count_and_a_function_that_always_fails_is_reported()
         raise ValueError("no")
 
     with pytest.raises(metaopt.RunFailed, match=r"all 10 evaluations failed.*ValueError: no"):
-        metaopt.minimize(broken, [(0.0, 1.0)], budget=20, seed=1)
+        metaopt.minimize(broken, [(0.0, 1.0)], budget=20, seed=1, hms=5)
 
 
 def test_create_optimizer_fills_defaults_validates_and_passes_the_budget():

@@ -357,7 +357,7 @@ def _walk_experiment(tmp_path: Path) -> Experiment:
     path.write_text(
         'name = "walk"\nproblem = "nao-walk"\nseeds = [1, 2]\n'
         '[problem_settings]\nbackend = "mujoco"\nduration = 3.0\nlock = 1.0\n'
-        '[[optimizers]]\nname = "hs"\nbudget = 8\n'
+        '[[optimizers]]\nname = "hs"\nbudget = 8\nparams = { hms = 4 }\n'
     )
     return load_experiment(path, registry())
 
