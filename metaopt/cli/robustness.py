@@ -66,14 +66,14 @@ from metaopt.settings import parse_problem_settings
     "csv_path",
     type=click.Path(dir_okay=False, path_type=Path),
     default=None,
-    help="Write the table as CSV here.",
+    help="Write the table (every candidate's) as CSV here.",
 )
 @click.option(
     "--figure",
     "figure_path",
     type=click.Path(dir_okay=False, path_type=Path),
     default=None,
-    help="Draw speed and fall rate per perturbation (PNG) here.",
+    help="Draw speed and fall rate per perturbation (PNG) here, of the best-ranked candidate.",
 )
 @scheduling_options
 @db_option
