@@ -172,10 +172,13 @@ def whole_table(results: Sequence[CellResult]) -> list[CellResult]:
     return list(pooled.values())
 
 
-def differing_params(candidates: Sequence[Candidate], table: PerturbationTable) -> list[str]:
+def differing_params(
+    candidates: Sequence[Candidate], table: PerturbationTable, engine: str
+) -> list[str]:
     """The problem parameters the candidates do not share, beyond those the table sets for all
-    (its common settings) and the engine: where a ranking may compare unlike fitnesses."""
-    fixed = {*table.common, "backend"}
+    (its common settings) and the ``engine`` parameter: where a ranking may compare unlike
+    fitnesses."""
+    fixed = {*table.common, engine}
     names = sorted({name for c in candidates for name in c.params} - fixed)
     return [
         name for name in names

@@ -16,6 +16,7 @@ from metaopt.plugins import registry
 from metaopt.robustness import (
     CellResult,
     Perturbation,
+    differing_params,
     rank,
     select_cells,
     tasks,
@@ -207,6 +208,16 @@ def test_candidates_rank_by_their_worst_engines_mean_fitness() -> None:
     assert [(r.candidate.label, r.score) for r in minimized[:3]] == [
         ("both", 2.0), ("tie", 3.0), ("one-engine", 9.0)
     ]  # fmt: skip
+
+
+def test_a_ranking_names_the_parameters_its_candidates_differ_in() -> None:
+    """Not the engine, not what the table sets for every cell (its noise, measure_flight)."""
+    base = {"backend": "mujoco", "noise": 0.0, "flight_penalty": 20.0, "duration": 15.0}
+    others = [{**base, "backend": "ode", "noise": 0.3}, {**base, "flight_penalty": 100.0}]
+    candidates = [Candidate(str(k), "nao-walk", params, np.zeros(1))
+                  for k, params in enumerate([base, *others])]  # fmt: skip
+    assert differing_params(candidates, STANDARD_TABLE, "backend") == ["flight_penalty"]
+    assert differing_params(candidates[:2], STANDARD_TABLE, "backend") == []
 
 
 @pytest.fixture(scope="module")

@@ -105,7 +105,7 @@ def robustness_command(
     )
     for candidate in candidates:  # bad parameters: before any work
         robustness.tasks(candidate, info, table, names, seeds, seed)
-    differ = robustness.differing_params(candidates, table)
+    differ = robustness.differing_params(candidates, table, robustness.engine_param(info))
     if differ:
         warnings.warn(
             f"the candidates differ in {', '.join(differ)}: each is scored with its own, so "
