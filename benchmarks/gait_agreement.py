@@ -19,7 +19,7 @@ from pathlib import Path
 
 import numpy as np
 
-from metaopt.executors import Executor, SerialExecutor
+from metaopt.cli.common import build_executor
 from metaopt.plugins import registry
 from metaopt_problems.nao_walk.gait_agreement import (
     GaitSample,
@@ -75,12 +75,6 @@ def _share(rate: float) -> str:
     return "–" if np.isnan(rate) else f"{rate:.0%}"
 
 
-def _executor(workers: int) -> Executor:
-    return (
-        SerialExecutor() if workers == 1 else registry().executor("process").factory(workers, None)
-    )
-
-
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument(
@@ -100,7 +94,7 @@ def main() -> None:
         sample = GaitSample(sample.controller, sample.vectors[: args.limit],
                             sample.origins[: args.limit], sample.source)  # fmt: skip
     started = time.perf_counter()
-    with _executor(args.workers) as executor:
+    with build_executor(None, args.workers, None) as executor:
         walks = walk(sample, engines, executor)
     print(f"{len(sample.vectors)} gaits ({sample.controller} controller): {sample.source}")
     print(f"{2 * len(sample.vectors) * len(engines)} episodes in "

@@ -67,8 +67,7 @@ def find_candidates(
         )
     with RunStore(db_path) as store:
         run = store.run(run_id)
-        one = [store.candidate(run, int(number))] if number else None
-        records = one or store.best_candidates(run, top)
+        records = [store.candidate(run, int(number))] if number else store.best_candidates(run, top)
         if not records:
             raise StoreError(f"run {run.id} has no successful evaluation")
     info = problems.get(run.problem)

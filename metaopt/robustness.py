@@ -133,27 +133,27 @@ def tasks(
 
 
 def evaluate(
-    candidate: Candidate,
-    info: ProblemInfo,
-    table: PerturbationTable,
-    engines: Sequence[str],
-    seeds: int,
-    seed: int,
-    executor: Executor,
-) -> list[CellResult]:
-    """The table's cells on every engine, in table order, each over ``seeds`` seeds."""
-    planned = tasks(candidate, info, table, engines, seeds, seed)
-    futures = [(cell, engine, executor.submit(task)) for cell, engine, task in planned]
-    results: dict[tuple[str, str], CellResult] = {}
-    for cell, engine, future in futures:
-        outcome: Outcome = future.result()
-        result = results.setdefault((cell, engine), CellResult(cell, engine, [], 0))
-        if outcome.fitness is None:
-            result.failed += 1
-        else:
-            result.samples.append(outcome.metrics)
-            result.fitnesses.append(outcome.fitness)
-    return list(results.values())
+    plans: Sequence[Sequence[tuple[str, str, EvaluationTask]]], executor: Executor
+) -> list[list[CellResult]]:
+    """Each plan (what tasks() returns for one candidate) as that candidate's cells on every
+    engine, in table order. Every plan's tasks are submitted before any result is awaited, so
+    the executor's workers stay busy from one candidate to the next."""
+    submitted = [
+        [(cell, engine, executor.submit(task)) for cell, engine, task in plan] for plan in plans
+    ]
+    tables = []
+    for futures in submitted:
+        results: dict[tuple[str, str], CellResult] = {}
+        for cell, engine, future in futures:
+            outcome: Outcome = future.result()
+            result = results.setdefault((cell, engine), CellResult(cell, engine, [], 0))
+            if outcome.fitness is None:
+                result.failed += 1
+            else:
+                result.samples.append(outcome.metrics)
+                result.fitnesses.append(outcome.fitness)
+        tables.append(list(results.values()))
+    return tables
 
 
 #: The cell name of an engine's row over every episode of the table.

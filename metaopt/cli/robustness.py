@@ -103,8 +103,9 @@ def robustness_command(
     table = robustness.select_cells(
         info.perturbations, [c.strip() for c in cells.split(",")] if cells is not None else None
     )
-    for candidate in candidates:  # bad parameters: before any work
-        robustness.tasks(candidate, info, table, names, seeds, seed)
+    plans = [  # bad parameters: before any work
+        robustness.tasks(candidate, info, table, names, seeds, seed) for candidate in candidates
+    ]
     differ = robustness.differing_params(candidates, table, robustness.engine_param(info))
     if differ:
         warnings.warn(
@@ -118,10 +119,10 @@ def robustness_command(
     console.print(f"perturbation table {table.version}: {len(table.cells)} cells x "
                   f"{len(names)} engines x {seeds} seeds{several}")  # fmt: skip
     with build_executor(executor, workers, scheduler) as pool:
-        tables = [
-            (c, robustness.evaluate(c, info, table, names, seeds, seed, pool)) for c in candidates
-        ]
-    ranked = robustness.rank(tables, _maximizes(info, candidates[0]))
+        results = robustness.evaluate(plans, pool)
+    ranked = robustness.rank(
+        list(zip(candidates, results, strict=True)), _maximizes(info, candidates[0])
+    )
     if len(ranked) > 1:
         console.print(display.robustness_ranking(ranked, table.version, table.metrics))
     best = ranked[0]
