@@ -1,4 +1,5 @@
-"""Re-evaluating a stored run's best candidate, on the same problem settings or changed ones."""
+"""Re-evaluating a stored run's best candidate (or another one, ``RUN:NUMBER``), on the same
+problem settings or changed ones."""
 
 from __future__ import annotations
 
@@ -35,9 +36,16 @@ class Replay:
     replayed: Outcome
 
 
-def stored_best(store: RunStore, run_id: int | str) -> tuple[RunRecord, CandidateRecord]:
-    """Run ``run_id`` and its best candidate (StoreError when it has no successful one)."""
+def stored_candidate(store: RunStore, target: int | str) -> tuple[RunRecord, CandidateRecord]:
+    """The run and candidate that ``target`` names: ``RUN`` (the run's best, by its aggregate
+    when it resampled) or ``RUN:NUMBER`` (its candidate NUMBER, as ``metaopt robustness --top``
+    labels them); StoreError when there is none."""
+    run_id, _, number = str(target).partition(":")
     run = store.run(run_id)
+    if number:
+        if not number.isdigit():
+            raise StoreError(f"a candidate is RUN:NUMBER, e.g. 3:120; got {target!r}")
+        return run, store.candidate(run, int(number))
     best = store.best_candidate(run)
     if best is None:
         raise StoreError(f"run {run.id} has no successful evaluation to replay")
@@ -59,15 +67,15 @@ def replay_params(
     return info, resolve(info.params, {**run.problem_params, **overrides}, info.name)
 
 
-def replay_best(
-    store: RunStore, run_id: int | str, plugins: Registry, overrides: dict[str, Any]
+def replay_candidate(
+    store: RunStore, target: int | str, plugins: Registry, overrides: dict[str, Any]
 ) -> Replay:
-    """Evaluate run ``run_id``'s best candidate again with its seeds.
+    """Evaluate ``target``'s candidate (a run's best, or ``RUN:NUMBER``) again with its seeds.
 
     ``overrides`` changes problem parameters (e.g. ``{"backend": "pybullet"}``); everything else
     is as stored with the run.
     """
-    run, best = stored_best(store, run_id)
+    run, best = stored_candidate(store, target)
     info, params = replay_params(run, plugins, overrides)
     problem = info.factory(**params)
     try:
@@ -107,19 +115,19 @@ class SeedReplay:
 
 def replay_seeds(
     store: RunStore,
-    run_id: int | str,
+    target: int | str,
     plugins: Registry,
     overrides: dict[str, Any],
     seeds: int,
     seed: int,
     executor: Executor,
 ) -> SeedReplay:
-    """Evaluate run ``run_id``'s best candidate with ``seeds`` evaluation seeds drawn from
-    ``seed`` (not the one it was found with): on a noisy problem, what the candidate does
-    rather than what one episode did. ``overrides`` as for replay_best."""
+    """Evaluate ``target``'s candidate (as replay_candidate) with ``seeds`` evaluation seeds
+    drawn from ``seed`` (not the one it was found with): on a noisy problem, what the
+    candidate does rather than what one episode did. ``overrides`` as for replay_candidate."""
     if seeds < 1:
         raise ConfigError(f"seeds must be at least 1, got {seeds}")
-    run, best = stored_best(store, run_id)
+    run, best = stored_candidate(store, target)
     info, params = replay_params(run, plugins, overrides)
     info.factory(**params).close()  # a problem refusing its parameters says so before work
     draw = EvaluationSeeds(seed)

@@ -21,7 +21,7 @@ from metaopt.experiment_store import ExperimentStore
 from metaopt.params import resolve
 from metaopt.physics import engine_names
 from metaopt.plugins import Registry
-from metaopt.replay import Replay, replay_best
+from metaopt.replay import Replay, replay_candidate
 from metaopt.result_table import Column, ResultTable, Row
 
 
@@ -51,7 +51,9 @@ def replay_on_other_engines(
         runs = [r for r in cell.runs if r.best_fitness is not None]
         for engine, backend in plugins.physics_backends.items():
             if engine not in engine_names(found_on) and not backend.unavailable:
-                replays = [replay_best(store, r.run.id, plugins, {"backend": engine}) for r in runs]
+                replays = [
+                    replay_candidate(store, r.run.id, plugins, {"backend": engine}) for r in runs
+                ]
                 transfers.append(Transfer(cell, found_on, engine, replays))
     return transfers
 

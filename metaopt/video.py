@@ -1,4 +1,5 @@
-"""`metaopt replay --video`: film a run's best candidate (Problem.video) into an MP4 file.
+"""`metaopt replay --video`: film a run's best candidate, or another (``RUN:NUMBER``), with
+Problem.video into an MP4 file.
 
 Frames are encoded as they come (H.264, yuv420p: plays in browsers and common players) with the
 ffmpeg that imageio-ffmpeg ships, so no system ffmpeg is needed and no video is held in memory.
@@ -15,7 +16,7 @@ import numpy as np
 
 from metaopt.errors import ConfigError, MetaoptError
 from metaopt.plugins import Registry
-from metaopt.replay import replay_params, stored_best
+from metaopt.replay import replay_params, stored_candidate
 from metaopt.store import RunStore
 
 #: Video size (width, height), pixels, and frames per second of simulated time.
@@ -52,18 +53,19 @@ class Mp4Writer:
             self._encoder = None
 
 
-def film_best(
+def film_candidate(
     store: RunStore,
-    run_id: int | str,
+    target: int | str,
     plugins: Registry,
     overrides: dict[str, Any],
     path: Path,
     size: tuple[int, int] = VIDEO_SIZE,
     fps: int = VIDEO_FPS,
 ) -> int:
-    """Film run ``run_id``'s best candidate with its seed, problem parameters as stored but for
-    ``overrides``, into path; returns the number of frames (an error keeps those so far)."""
-    run, best = stored_best(store, run_id)
+    """Film ``target``'s candidate (a run's best, or ``RUN:NUMBER``) with its seed, problem
+    parameters as stored but for ``overrides``, into path; returns the number of frames (an
+    error keeps those so far)."""
+    run, best = stored_candidate(store, target)
     info, params = replay_params(run, plugins, overrides)
     problem = info.factory(**params)
     writer = Mp4Writer(path, size, fps)
@@ -75,5 +77,5 @@ def film_best(
         writer.close()
         problem.close()
     if writer.frames == 0:
-        raise MetaoptError(f"run {run.id}'s best candidate gave no frame to film")
+        raise MetaoptError(f"{target}'s candidate gave no frame to film")
     return writer.frames

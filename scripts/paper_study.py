@@ -29,7 +29,7 @@ import numpy as np
 from metaopt.experiment import load_experiment
 from metaopt.experiment_store import ExperimentStore
 from metaopt.plugins import Registry, registry
-from metaopt.replay import replay_params, stored_best
+from metaopt.replay import replay_params, stored_candidate
 from metaopt_problems.nao_walk.controller import (
     MatsuokaCpg,
     cpg_space,
@@ -71,7 +71,7 @@ def swing_bounds(samples: int = 400, seed: int = 0) -> dict[str, float]:
 def best_rhythm(store: ExperimentStore, run_id: int, plugins: Registry) -> tuple[float, Rhythm]:
     """A run's best candidate replayed with its first sample's seed, recording the walk: its
     distance and rhythm (the walk `metaopt report` draws)."""
-    run, best = stored_best(store, run_id)
+    run, best = stored_candidate(store, run_id)
     info, params = replay_params(run, plugins, {})
     problem = info.factory(**params)
     try:

@@ -1,4 +1,4 @@
-"""Keep a stored run's best nao-walk gait as data: problems/nao_walk/gaits/NAME.json.
+"""Keep a stored run's best nao-walk gait, or its candidate N (RUN:N), as data: gaits/NAME.json.
 
 The record holds the decision vector by parameter name, how it was found (the command, the
 optimizer and its parameters, seed, budget, the candidate's number and its first evaluation's
@@ -71,18 +71,21 @@ def claim(record: dict, engine: str) -> dict:
     }
 
 
-def record(db: Path, run_id: int, command: str, description: str, claims: list[str]) -> dict:
-    """The gait record of the best evaluation of run ``run_id`` in ``db``."""
+def record(db: Path, target: str, command: str, description: str, claims: list[str]) -> dict:
+    """The gait record of ``target`` in ``db``: a run's best candidate (by its aggregate over
+    its samples when the run resampled, as the optimizer saw it) or RUN:NUMBER, another one
+    (e.g. the one `metaopt robustness RUN --top K` ranked first)."""
+    from metaopt.errors import StoreError
     from metaopt.params import resolve
     from metaopt.plugins import registry
+    from metaopt.replay import stored_candidate
     from metaopt.store import RunStore
 
     with RunStore(db) as store:
-        run = store.run(run_id)
-        # by its aggregate over its samples when the run resampled (as the optimizer saw it)
-        best = store.best_candidate(run)
-    if best is None:
-        raise SystemExit(f"run {run_id} has no successful evaluation")
+        try:
+            run, best = stored_candidate(store, target)
+        except StoreError as missing:
+            raise SystemExit(str(missing)) from None
     info = registry().problem("nao-walk")
     problem_params = resolve(info.params, run.problem_params, "nao-walk")
     names = [variable["name"] for variable in run.space]
@@ -148,7 +151,7 @@ def walks(claimed: dict) -> bool:
 
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("run", type=int, nargs="?", help="run id in the store")
+    parser.add_argument("run", nargs="?", help="run id in the store, or RUN:CANDIDATE")
     parser.add_argument("--db", type=Path)
     parser.add_argument("--name", help="the record's name: gaits/NAME.json")
     parser.add_argument("--command", help="the command that found it")

@@ -88,6 +88,17 @@ def test_replay_reproduces_the_stored_best_and_rejects_foreign_settings(tmp_path
     wrong = metaopt_cli("replay", "1", "--backend", "pybullet", cwd=tmp_path, env=BASIC)
     assert wrong.returncode == 2
     assert "problem 'rastrigin' has no parameter 'backend'" in wrong.stderr
+    # RUN:CANDIDATE replays another candidate than the best, with its own seed
+    evaluations = json.loads(stored.stdout)["evaluations"]
+    worse = next(e for e in evaluations if e["fitness"] > 2 * best)
+    other = metaopt_cli("replay", f"1:{worse['candidate']}", cwd=tmp_path, env=BASIC)
+    assert other.returncode == 0, other.stderr
+    fitness_row = next(line for line in other.stdout.splitlines() if "fitness" in line)
+    assert fitness_row.count(f"{worse['fitness']:.6g}") == 2
+    for target, message in (("1:x", "a candidate is RUN:NUMBER"), ("1:9999", "no candidate 9999")):
+        refused = metaopt_cli("replay", target, cwd=tmp_path, env=BASIC)
+        assert refused.returncode == 2 and message in refused.stderr
+        assert "Traceback" not in refused.stderr
 
 
 def test_run_stops_at_the_target_and_refuses_a_non_finite_one(tmp_path):

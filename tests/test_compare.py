@@ -22,7 +22,7 @@ from metaopt.experiment_runner import run_experiment
 from metaopt.experiment_store import ExperimentStore
 from metaopt.plugins import registry
 from metaopt.problem import Sense
-from metaopt.replay import replay_best
+from metaopt.replay import replay_candidate
 from metaopt.result_table import ResultTable
 from metaopt.run_loop import RunInterrupted, RunSettings
 from metaopt.transfer import replay_on_other_engines, transfer_table
@@ -368,7 +368,7 @@ def test_transfer_table_values_equal_replays_on_the_other_engine(tmp_path: Path)
         _run(experiment, store)
         transfers = replay_on_other_engines(experiment, store, registry())
         table: ResultTable = transfer_table(experiment, transfers, registry())
-        replays = [replay_best(store, run.id, registry(), {"backend": "pybullet"})
+        replays = [replay_candidate(store, run.id, registry(), {"backend": "pybullet"})
                    for run in store.runs()]  # fmt: skip
     others = [e for e, info in registry().physics_backends.items()
               if e != "mujoco" and not info.unavailable]  # fmt: skip

@@ -16,7 +16,7 @@ from metaopt.physics import PhysicsSettings
 from metaopt.plugins import registry
 from metaopt.run_loop import RunSpec, run
 from metaopt.store import RunStore
-from metaopt.video import VIDEO_FPS, film_best
+from metaopt.video import VIDEO_FPS, film_candidate
 from metaopt_problems.nao_walk.robot import nao
 from metaopt_problems.nao_walk.stored_gaits import gait_vector, load_gait
 from metaopt_problems.nao_walk.video import CAMERA_TARGET_HEIGHT, film
@@ -106,7 +106,7 @@ def test_the_camera_follows_the_torso():
 
 def test_a_frame_rate_that_does_not_divide_the_control_rate_is_refused(walk_db, tmp_path):
     with RunStore(walk_db) as store, pytest.raises(ConfigError, match="50, 25, 10, 5, 2, 1"):
-        film_best(store, 1, registry(), {}, tmp_path / "walk.mp4", fps=30)
+        film_candidate(store, 1, registry(), {}, tmp_path / "walk.mp4", fps=30)
     assert not (tmp_path / "walk.mp4").exists()
 
 
@@ -116,5 +116,5 @@ def test_a_problem_without_video_says_so_in_one_line(tmp_path):
         spec = RunSpec("random", "sphere", 10, 1)
         run(spec, plugins.optimizer("random"), plugins.problem("sphere"), store)
         with pytest.raises(ConfigError, match=r"^problem 'sphere': cannot show a video$"):
-            film_best(store, 1, plugins, {}, tmp_path / "walk.mp4")
+            film_candidate(store, 1, plugins, {}, tmp_path / "walk.mp4")
     assert not (tmp_path / "walk.mp4").exists()

@@ -31,7 +31,7 @@ from metaopt.errors import MetaoptError, SettingWarning
 from metaopt.experiment_store import experiment_names
 from metaopt.export import FORMATS, export_run
 from metaopt.plugins import registry
-from metaopt.replay import replay_best, replay_seeds
+from metaopt.replay import replay_candidate, replay_seeds
 from metaopt.run_loop import (
     AGGREGATES,
     MODES,
@@ -391,12 +391,12 @@ def export_command(run_id: str, fmt: str, output: str | None, db_path: str) -> N
 
 
 @main.command("replay")
-@click.argument("run_id")
+@click.argument("target", metavar="RUN[:CANDIDATE]")
 @click.option("--backend", default=None, help="Physics engine to replay on [the run's own].")
 @click.option("--set", "settings", multiple=True, metavar="NAME=VALUE",
               help="Change a problem parameter for the replay.")  # fmt: skip
 @click.option("--video", type=click.Path(dir_okay=False), default=None,
-              help="Also film the best candidate into this MP4 file.")  # fmt: skip
+              help="Also film the candidate into this MP4 file.")  # fmt: skip
 @click.option("--seeds", type=click.IntRange(min=1), default=None,
               help="Re-evaluate with this many fresh seeds: median, IQR, fall rate.")  # fmt: skip
 @click.option("--seed", type=click.IntRange(min=0, max=MAX_INT64), default=0, show_default=True,
@@ -404,26 +404,27 @@ def export_command(run_id: str, fmt: str, output: str | None, db_path: str) -> N
 @scheduling_options
 @db_option
 def replay_command(
-    run_id: str, backend: str | None, settings: tuple[str, ...], video: str | None,
+    target: str, backend: str | None, settings: tuple[str, ...], video: str | None,
     seeds: int | None, seed: int, executor: str | None, workers: int | None,
     scheduler: str | None, db_path: str,
 ) -> None:  # fmt: skip
-    """Re-run a stored run's best candidate and compare with what was stored (with --seeds: a
-    statistic over fresh seeds, for noisy problems)."""
+    """Re-run a stored run's best candidate (RUN) or another one (RUN:CANDIDATE, as `metaopt
+    robustness --top` names them) and compare with what was stored (with --seeds: a statistic
+    over fresh seeds, for noisy problems)."""
     if video is not None:
         check_output_file(video, "--video", suffix=".mp4")
     require_store(db_path)
     plugins = registry()
     with RunStore(db_path) as store:
-        run_record = store.run(run_id)
+        run_record = store.run(target.partition(":")[0])
         problem_info = plugins.problem(run_record.problem)
         pairs = [*settings, *([f"backend={backend}"] if backend is not None else [])]
         overrides = parse_problem_settings(pairs, problem_info)
         if seeds is not None:
             with build_executor(executor, workers, scheduler) as pool:
-                over_seeds = replay_seeds(store, run_id, plugins, overrides, seeds, seed, pool)
+                over_seeds = replay_seeds(store, target, plugins, overrides, seeds, seed, pool)
         else:
-            result = replay_best(store, run_id, plugins, overrides)
+            result = replay_candidate(store, target, plugins, overrides)
     if seeds is not None:
         console.print(display.replay_seeds_table(over_seeds))
         if all(o.fitness is None for o in over_seeds.outcomes):
@@ -435,7 +436,7 @@ def replay_command(
             errors.print(f"The replay failed: {result.replayed.error}")
             sys.exit(1)
     if video is not None:
-        write_replay_video(db_path, run_id, overrides, video)
+        write_replay_video(db_path, target, overrides, video)
 
 
 main.add_command(new)

@@ -106,12 +106,12 @@ def _report_experiment(
             click.echo(f"Note ({found.setting or 'all runs'}): {found.figures.note}.", err=True)
 
 
-def write_replay_video(db_path: str, run_id: str, overrides: dict[str, Any], path: str) -> None:
-    """``metaopt replay RUN --video PATH``: film the replayed best candidate into PATH."""
-    from metaopt.video import VIDEO_FPS, VIDEO_SIZE, film_best
+def write_replay_video(db_path: str, target: str, overrides: dict[str, Any], path: str) -> None:
+    """``metaopt replay RUN[:NUMBER] --video PATH``: film the replayed candidate into PATH."""
+    from metaopt.video import VIDEO_FPS, VIDEO_SIZE, film_candidate
 
     with RunStore(db_path) as store:
-        frames = film_best(store, run_id, registry(), overrides, Path(path))
+        frames = film_candidate(store, target, registry(), overrides, Path(path))
     width, height = VIDEO_SIZE
     click.echo(
         f"wrote {path}: {frames} frames, {width}x{height}, {VIDEO_FPS} fps "
