@@ -14,6 +14,7 @@ latency, and the seed-drawn noise.
 
 from __future__ import annotations
 
+import math
 from collections.abc import Callable, Mapping
 from typing import TYPE_CHECKING, Any, NamedTuple
 
@@ -87,6 +88,10 @@ PARAMS = (
     Param("engine_score", str, "worst", "with several engines: worst (the fitness is the worst "
           "engine's) or mean (their mean; the plain metrics stay the worst engine's)",
           choices=ENGINE_SCORES),
+    Param("engine_cap", float, math.inf, "with several engines: each engine's fitness counts "
+          "at most this before engine_score takes the worst or the mean (inf = no cap): with "
+          "the mean, going past the cap on one engine stops paying, so the slower engines "
+          "must catch up", low=0.0, low_open=True),
     Param("controller", str, "paper", "paper (the paper's CPG and its 10 parameters), "
           "extended (sway, knee lift, torso feedback; docs/nao-walk.md), stride (extended, "
           "with a knee phase and an ankle push-off) or steered (stride, with heading "
@@ -180,6 +185,7 @@ class NaoWalk(Problem):
         flight_penalty: float = 0.0,
         worlds: str = "none",
         engine_score: str = "worst",
+        engine_cap: float = math.inf,
     ) -> None:
         #: every parameter, to build the perturbed worlds from (worlds=standard)
         self._params = {k: v for k, v in locals().items() if k not in ("self", "__class__")}
@@ -235,6 +241,7 @@ class NaoWalk(Problem):
         self.worlds = worlds
         _require_choice("engine_score", engine_score, ENGINE_SCORES)
         self.engine_score = engine_score
+        self.engine_cap = engine_cap
         self._worlds: dict[int, NaoWalk] = {}
         if worlds == "standard":
             for cell in range(len(STANDARD_TABLE.cells)):
@@ -299,9 +306,10 @@ class NaoWalk(Problem):
         for engine, evaluation in on_engine.items():
             for name, value in evaluation.metrics.items():
                 metrics[f"{name}@{engine}"] = value
+        scores = [min(e.fitness, self.engine_cap) for e in on_engine.values()]
         if self.engine_score == "mean":
-            return Evaluation(float(np.mean([e.fitness for e in on_engine.values()])), metrics)
-        return Evaluation(worst.fitness, metrics)
+            return Evaluation(float(np.mean(scores)), metrics)
+        return Evaluation(min(scores), metrics)
 
     def _evaluate_on(self, engine: str, gait: Gait, seed: int) -> Evaluation:
         result = self.runner_on(engine).run(gait, disturbance=self.disturbance(seed, engine))
