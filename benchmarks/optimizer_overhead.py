@@ -21,11 +21,11 @@ import numpy as np
 from rich.console import Console
 
 from metaopt import Evaluation, Problem, ProblemInfo, Space
-from metaopt.display import RichProgress
 from metaopt.params import resolve
 from metaopt.plugins import registry
+from metaopt.reporting.display import RichProgress
 from metaopt.run_loop import RunSpec, run
-from metaopt.store import RunStore
+from metaopt.storage.run_store import RunStore
 
 OPTIMIZERS = ("hs", "ga", "random")
 

@@ -21,10 +21,10 @@ import os
 import tempfile
 import time
 
-from metaopt.executors import Executor, SerialExecutor
+from metaopt.executors.base import Executor, SerialExecutor
 from metaopt.plugins import registry
 from metaopt.run_loop import RunSettings, RunSpec, run
-from metaopt.store import RunStore
+from metaopt.storage.run_store import RunStore
 
 
 def _executor(name: str) -> Executor:

@@ -18,15 +18,15 @@ from typing import Any
 
 import numpy as np
 
-from metaopt.convergence import convergence
 from metaopt.errors import ConfigError
 from metaopt.optimizer import Optimizer
 from metaopt.params import resolve
 from metaopt.plugins import registry
 from metaopt.problem import Evaluation, Problem, ProblemInfo, Sense
+from metaopt.reporting.convergence import convergence
 from metaopt.run_loop import RunSettings, RunSpec, run
 from metaopt.space import Space, Variable
-from metaopt.store import RunStore
+from metaopt.storage.run_store import RunStore
 
 #: What bounds may be: a Space, (lower, upper) pairs, or {variable name: (lower, upper)}.
 Bounds = Space | Sequence[tuple[float, float]] | Mapping[str, tuple[float, float]]

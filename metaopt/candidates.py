@@ -50,7 +50,7 @@ def find_candidates(
         if target in stored:
             params = resolve(info.params, stored[target].params, info.name)
             return [Candidate(target, info.name, params, stored[target].x)], info
-    from metaopt.store import RunStore
+    from metaopt.storage.run_store import RunStore
 
     run_id, _, number = target.partition(":")
     if not run_id.isdigit() or (number and not number.isdigit()) or not Path(db_path).exists():

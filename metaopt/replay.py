@@ -9,7 +9,7 @@ from typing import Any
 import numpy as np
 
 from metaopt.errors import ConfigError, StoreError
-from metaopt.executors import (
+from metaopt.executors.base import (
     EvaluationTask,
     Executor,
     Outcome,
@@ -22,7 +22,7 @@ from metaopt.plugins import Registry
 from metaopt.problem import ProblemInfo
 from metaopt.resampling import aggregate_samples
 from metaopt.seeding import EvaluationSeeds
-from metaopt.store import CandidateRecord, RunRecord, RunStore
+from metaopt.storage.run_store import CandidateRecord, RunRecord, RunStore
 
 
 @dataclass

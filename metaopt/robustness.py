@@ -22,7 +22,7 @@ import numpy as np
 
 from metaopt.candidates import Candidate
 from metaopt.errors import ConfigError
-from metaopt.executors import EvaluationTask, Executor, Outcome
+from metaopt.executors.base import EvaluationTask, Executor, Outcome
 from metaopt.params import resolve
 from metaopt.problem import ProblemInfo
 from metaopt.seeding import EvaluationSeeds

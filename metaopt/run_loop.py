@@ -25,7 +25,7 @@ from typing import Any, Protocol
 import numpy as np
 
 from metaopt.errors import ConfigError, RunFailed, SettingWarning
-from metaopt.executors import (
+from metaopt.executors.base import (
     EvaluationTask,
     Executor,
     Outcome,
@@ -39,7 +39,7 @@ from metaopt.problem import Problem, ProblemInfo, Sense
 from metaopt.resampling import AGGREGATES, aggregate_fitness, aggregate_metrics
 from metaopt.seeding import CommonSeeds, EvaluationSeeds
 from metaopt.space import Space
-from metaopt.store import EvaluationRecord, RunRecord, RunStore
+from metaopt.storage.run_store import EvaluationRecord, RunRecord, RunStore
 from metaopt.versions import environment_versions
 from metaopt.warm_start import check_start, start_points
 

@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 from metaopt import hookimpl
-from metaopt.executors import Executor, ExecutorInfo, SerialExecutor
+from metaopt.executors.base import Executor, ExecutorInfo, SerialExecutor
 
 
 def _serial(workers: int, address: str | None) -> Executor:
@@ -11,13 +11,13 @@ def _serial(workers: int, address: str | None) -> Executor:
 
 
 def _processes(workers: int, address: str | None) -> Executor:
-    from metaopt.process_pool import ProcessExecutor
+    from metaopt.executors.process_pool import ProcessExecutor
 
     return ProcessExecutor(workers)
 
 
 def _dask(workers: int, address: str | None) -> Executor:
-    from metaopt.dask_executor import DaskExecutor
+    from metaopt.executors.dask_cluster import DaskExecutor
 
     return DaskExecutor(workers, address)
 

@@ -18,7 +18,7 @@ from pathlib import Path
 
 import numpy as np
 
-from metaopt.store import RunStore
+from metaopt.storage.run_store import RunStore
 from metaopt_problems.nao_walk.gait_agreement import transfer_rates
 from metaopt_problems.nao_walk.stored_gaits import ENGINES
 

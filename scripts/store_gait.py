@@ -79,7 +79,7 @@ def record(db: Path, target: str, command: str, description: str, claims: list[s
     from metaopt.params import resolve
     from metaopt.plugins import registry
     from metaopt.replay import stored_candidate
-    from metaopt.store import RunStore
+    from metaopt.storage.run_store import RunStore
 
     with RunStore(db) as store:
         try:

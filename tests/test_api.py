@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 import metaopt
-from metaopt.store import RunStore
+from metaopt.storage.run_store import RunStore
 
 
 def sphere(x: np.ndarray) -> float:

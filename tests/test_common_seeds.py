@@ -10,7 +10,7 @@ import pytest
 from metaopt import Evaluation, Problem, ProblemInfo, Sense, Space
 from metaopt.plugins import registry
 from metaopt.run_loop import RunSettings, RunSpec, run
-from metaopt.store import RunStore
+from metaopt.storage.run_store import RunStore
 from tests.conftest import metaopt_cli
 
 

@@ -14,18 +14,23 @@ import numpy as np
 import pytest
 from scipy.stats import mannwhitneyu
 
-from metaopt.comparison import ProblemTraits, compare
+from metaopt.comparison.experiment import (
+    Experiment,
+    experiment_from_flags,
+    load_experiment,
+    restrict,
+)
+from metaopt.comparison.runner import run_experiment
+from metaopt.comparison.summary import ProblemTraits, compare
+from metaopt.comparison.transfer import replay_on_other_engines, transfer_table
 from metaopt.errors import ConfigError
-from metaopt.executors import SerialExecutor
-from metaopt.experiment import Experiment, experiment_from_flags, load_experiment, restrict
-from metaopt.experiment_runner import run_experiment
-from metaopt.experiment_store import ExperimentStore
+from metaopt.executors.base import SerialExecutor
 from metaopt.plugins import registry
 from metaopt.problem import Sense
 from metaopt.replay import replay_candidate
-from metaopt.result_table import ResultTable
+from metaopt.reporting.result_table import ResultTable
 from metaopt.run_loop import RunInterrupted, RunSettings
-from metaopt.transfer import replay_on_other_engines, transfer_table
+from metaopt.storage.experiment_store import ExperimentStore
 from tests.conftest import metaopt_cli
 
 SPHERE_FLAGS = ("-o", "hs", "-o", "random", "-p", "sphere", "--seeds", "5", "--budget", "300",

@@ -6,7 +6,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from metaopt.store import RunStore
+from metaopt.storage.run_store import RunStore
 from metaopt_problems.nao_walk.gait_agreement import transfer_rates
 from tests.conftest import load_script, metaopt_cli
 

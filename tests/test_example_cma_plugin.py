@@ -10,7 +10,7 @@ from pathlib import Path
 
 import pytest
 
-from metaopt.store import RunStore
+from metaopt.storage.run_store import RunStore
 from tests.conftest import metaopt_cli, pip_install_isolated
 
 EXAMPLE = Path(__file__).parent.parent / "examples" / "metaopt-cma"

@@ -10,7 +10,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from metaopt.executors import SerialExecutor
+from metaopt.executors.base import SerialExecutor
 from metaopt.plugins import registry
 from metaopt_problems.nao_walk.gait_agreement import (
     TWIN_MASS_SCALE,

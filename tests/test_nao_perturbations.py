@@ -12,7 +12,7 @@ import numpy as np
 import pytest
 
 from metaopt import ConfigError
-from metaopt.executors import EvaluationTask, evaluate_task, release_problems
+from metaopt.executors.base import EvaluationTask, evaluate_task, release_problems
 from metaopt.params import resolve
 from metaopt.physics import PhysicsSettings
 from metaopt.plugins import registry

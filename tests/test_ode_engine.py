@@ -19,7 +19,7 @@ import pytest
 
 from metaopt.physics import PhysicsBackend, PhysicsSettings, engine_version
 from metaopt.plugins import registry
-from metaopt.store import RunStore
+from metaopt.storage.run_store import RunStore
 from metaopt_problems.nao_walk.robot import nao
 from metaopt_problems.physics.ode_binding import LIBRARY_ENV, PARAM_HI_STOP, PARAM_LO_STOP
 from tests.engines import needs_ode

@@ -18,7 +18,7 @@ def study():
 
 
 def test_the_study_files_are_valid_experiments() -> None:
-    from metaopt.experiment import load_experiment
+    from metaopt.comparison.experiment import load_experiment
     from metaopt.plugins import registry
 
     files = sorted(EXPERIMENTS.glob("*.toml"))

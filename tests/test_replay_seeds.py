@@ -7,12 +7,12 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from metaopt.executors import SerialExecutor
+from metaopt.executors.base import SerialExecutor
 from metaopt.plugins import registry
 from metaopt.replay import replay_seeds
 from metaopt.robustness import summarize
 from metaopt.seeding import EvaluationSeeds
-from metaopt.store import RunStore
+from metaopt.storage.run_store import RunStore
 from tests.conftest import metaopt_cli
 
 SHORT = ("--set", "duration=4", "--set", "lock=1")

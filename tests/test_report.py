@@ -10,12 +10,12 @@ from click.testing import CliRunner
 from matplotlib.image import imread
 
 from metaopt.cli.report import report
-from metaopt.convergence import Band, convergence, group_runs
-from metaopt.plots import bands_figure, convergence_figure
 from metaopt.plugins import registry
-from metaopt.report import comparison_figures, run_figures, write_figures
+from metaopt.reporting.convergence import Band, convergence, group_runs
+from metaopt.reporting.plots import bands_figure, convergence_figure
+from metaopt.reporting.report import comparison_figures, run_figures, write_figures
 from metaopt.run_loop import RunSpec, run
-from metaopt.store import RunStore
+from metaopt.storage.run_store import RunStore
 from metaopt_problems.nao_walk.stored_gaits import gait_vector, load_gait
 from tests.walk_runs import store_walk_run
 
@@ -198,8 +198,8 @@ budget = 60
 
 
 def test_experiment_report_draws_each_setting_from_the_stored_runs(tmp_path):
-    from metaopt.experiment import load_experiment
-    from metaopt.experiment_store import ExperimentStore
+    from metaopt.comparison.experiment import load_experiment
+    from metaopt.storage.experiment_store import ExperimentStore
     from tests.conftest import metaopt_cli
 
     (tmp_path / "tiny.toml").write_text(EXPERIMENT)
@@ -215,7 +215,7 @@ def test_experiment_report_draws_each_setting_from_the_stored_runs(tmp_path):
 
     experiment = load_experiment(tmp_path / "tiny.toml", registry())
     with ExperimentStore(tmp_path / "e.db") as store:
-        from metaopt.report import experiment_figures
+        from metaopt.reporting.report import experiment_figures
 
         (first, second) = experiment_figures(store, experiment, registry())
         cell = experiment.cells()[0]  # hs on dim=2
@@ -242,7 +242,7 @@ def test_experiment_report_draws_each_setting_from_the_stored_runs(tmp_path):
     ],
 )
 def test_experiment_report_bad_input_is_one_line(tmp_path, args, message):
-    from metaopt.experiment_store import ExperimentStore
+    from metaopt.storage.experiment_store import ExperimentStore
     from tests.conftest import metaopt_cli
 
     (tmp_path / "tiny.toml").write_text(EXPERIMENT)

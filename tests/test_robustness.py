@@ -22,7 +22,7 @@ from metaopt.robustness import (
     tasks,
     whole_table,
 )
-from metaopt.store import RunStore
+from metaopt.storage.run_store import RunStore
 from metaopt_problems.nao_walk.robustness import STANDARD_TABLE
 from metaopt_problems.nao_walk.stored_gaits import gait_vector, load_gait
 from tests.conftest import metaopt_cli

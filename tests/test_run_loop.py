@@ -9,7 +9,7 @@ from metaopt import ConfigError, Evaluation, Problem, ProblemInfo, Sense, Space
 from metaopt.errors import RunFailed
 from metaopt.plugins import registry
 from metaopt.run_loop import RunSettings, RunSpec, resume, run
-from metaopt.store import RunStore
+from metaopt.storage.run_store import RunStore
 
 
 def _stored(store: RunStore, run_id: int) -> list[tuple]:

@@ -14,7 +14,7 @@ import pytest
 
 from metaopt.plugins import registry
 from metaopt.run_loop import RunSettings, RunSpec, run
-from metaopt.store import RunStore
+from metaopt.storage.run_store import RunStore
 from tests.conftest import metaopt_cli
 
 ALL = {"METAOPT_LOAD_PLUGINS": None}

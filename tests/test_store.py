@@ -5,8 +5,8 @@ import numpy as np
 import pytest
 
 from metaopt import StoreError
-from metaopt import store as store_module
-from metaopt.store import FLUSH_INTERVAL, RunStore
+from metaopt.storage import run_store as store_module
+from metaopt.storage.run_store import FLUSH_INTERVAL, RunStore
 
 
 def _new_run(store: RunStore, settings: dict | None = None) -> int:

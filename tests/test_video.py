@@ -14,9 +14,9 @@ from metaopt.cli.report import write_replay_video
 from metaopt.errors import ConfigError
 from metaopt.physics import PhysicsSettings
 from metaopt.plugins import registry
+from metaopt.reporting.video import VIDEO_FPS, film_candidate
 from metaopt.run_loop import RunSpec, run
-from metaopt.store import RunStore
-from metaopt.video import VIDEO_FPS, film_candidate
+from metaopt.storage.run_store import RunStore
 from metaopt_problems.nao_walk.robot import nao
 from metaopt_problems.nao_walk.stored_gaits import gait_vector, load_gait
 from metaopt_problems.nao_walk.video import CAMERA_TARGET_HEIGHT, film

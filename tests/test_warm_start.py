@@ -8,7 +8,7 @@ import metaopt
 from metaopt import ConfigError, Space
 from metaopt.plugins import registry
 from metaopt.run_loop import RunSettings, RunSpec, resume, run
-from metaopt.store import RunStore
+from metaopt.storage.run_store import RunStore
 from metaopt.warm_start import start_points
 from metaopt_problems.nao_walk.stored_gaits import gait_vector, load_gait
 from tests.conftest import metaopt_cli

@@ -6,7 +6,7 @@ from __future__ import annotations
 from pathlib import Path
 
 from metaopt.plugins import registry
-from metaopt.store import RunStore
+from metaopt.storage.run_store import RunStore
 from metaopt_problems.nao_walk.stored_gaits import gait_vector, load_gait
 
 #: A 3 s episode with a 1 s lock phase: 2 s (100 control steps) of walking.

@@ -10,7 +10,6 @@ import warnings
 import click
 from rich.markup import escape
 
-from metaopt import display
 from metaopt.candidates import find_start
 from metaopt.cli.common import (
     MAX_INT64,
@@ -28,10 +27,9 @@ from metaopt.cli.output import check_output_file, format_option, print_records, 
 from metaopt.cli.report import report, write_replay_video
 from metaopt.cli.robustness import robustness_command
 from metaopt.errors import MetaoptError, SettingWarning
-from metaopt.experiment_store import experiment_names
-from metaopt.export import FORMATS, export_run
 from metaopt.plugins import registry
 from metaopt.replay import replay_candidate, replay_seeds
+from metaopt.reporting import display
 from metaopt.run_loop import (
     AGGREGATES,
     MODES,
@@ -43,7 +41,9 @@ from metaopt.run_loop import (
     run,
 )
 from metaopt.settings import parse_problem_settings, split_settings
-from metaopt.store import RunStore
+from metaopt.storage.experiment_store import experiment_names
+from metaopt.storage.export import FORMATS, export_run
+from metaopt.storage.run_store import RunStore
 
 #: click 8.2+ raises this for a group called with no arguments (older versions exit at once).
 _NO_ARGS_IS_HELP = getattr(click.exceptions, "NoArgsIsHelpError", ())

@@ -12,9 +12,9 @@ import click
 from rich.console import Console
 
 from metaopt.errors import ConfigError, MetaoptError
-from metaopt.executors import Executor, SerialExecutor
+from metaopt.executors.base import Executor, SerialExecutor
 from metaopt.plugins import registry
-from metaopt.store import DEFAULT_DB
+from metaopt.storage.run_store import DEFAULT_DB
 
 #: Output for a file or a pipe is never cut to a terminal's width: tables come out whole.
 console = Console() if sys.stdout.isatty() else Console(width=100_000)

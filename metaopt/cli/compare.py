@@ -10,7 +10,6 @@ from pathlib import Path
 import click
 from rich.console import Console
 
-from metaopt import display
 from metaopt.cli.common import (
     MAX_INT64,
     build_executor,
@@ -22,15 +21,21 @@ from metaopt.cli.common import (
     scheduling_options,
 )
 from metaopt.cli.output import OUTPUT_FORMATS, check_output_file, written_whole
-from metaopt.comparison import compare as compare_cells
+from metaopt.comparison.experiment import (
+    Experiment,
+    experiment_from_flags,
+    load_experiment,
+    restrict,
+)
+from metaopt.comparison.runner import CellSeed, run_experiment, run_experiment_in_parallel
+from metaopt.comparison.summary import compare as compare_cells
+from metaopt.comparison.transfer import replay_on_other_engines, transfer_table
 from metaopt.errors import ConfigError
-from metaopt.experiment import Experiment, experiment_from_flags, load_experiment, restrict
-from metaopt.experiment_runner import CellSeed, run_experiment, run_experiment_in_parallel
-from metaopt.experiment_store import ExperimentStore
 from metaopt.plugins import Registry, registry
-from metaopt.result_table import ResultTable
+from metaopt.reporting import display
+from metaopt.reporting.result_table import ResultTable
 from metaopt.run_loop import RunInterrupted
-from metaopt.transfer import replay_on_other_engines, transfer_table
+from metaopt.storage.experiment_store import ExperimentStore
 
 DEFAULT_SEEDS = 5
 #: More seeds than this is a typing slip: a compare runs one run per seed and cell.

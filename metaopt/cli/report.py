@@ -12,10 +12,10 @@ import click
 
 from metaopt.cli.common import db_option, require_store
 from metaopt.cli.output import check_output_folder
-from metaopt.convergence import GROUP_BY
 from metaopt.errors import ConfigError
 from metaopt.plugins import registry
-from metaopt.store import RunStore
+from metaopt.reporting.convergence import GROUP_BY
+from metaopt.storage.run_store import RunStore
 
 
 @click.command("report")
@@ -60,7 +60,7 @@ def report(
     """Draw a run's convergence and its best candidate's figures (nao-walk: joint angles,
     drift, torso height); for several runs, median and quartile bands of their best so far; for
     an experiment (--experiment FILE), both per problem setting."""
-    from metaopt.report import comparison_figures, run_figures, write_figures
+    from metaopt.reporting.report import comparison_figures, run_figures, write_figures
 
     if (experiment_file is None) == (not run_ids):
         raise ConfigError("give run ids (metaopt report RUN...) or --experiment FILE, not both")
@@ -88,9 +88,9 @@ def _report_experiment(
     path: str, only: tuple[str, ...], out_dir: Path | None, db_path: str
 ) -> None:
     """`metaopt report --experiment FILE`: every (selected) setting's figures and an index.md."""
-    from metaopt.experiment import load_experiment, restrict
-    from metaopt.experiment_store import ExperimentStore
-    from metaopt.report import experiment_figures, write_experiment_figures
+    from metaopt.comparison.experiment import load_experiment, restrict
+    from metaopt.reporting.report import experiment_figures, write_experiment_figures
+    from metaopt.storage.experiment_store import ExperimentStore
 
     plugins = registry()
     experiment = restrict(load_experiment(path, plugins), only, plugins)
@@ -108,7 +108,7 @@ def _report_experiment(
 
 def write_replay_video(db_path: str, target: str, overrides: dict[str, Any], path: str) -> None:
     """``metaopt replay RUN[:NUMBER] --video PATH``: film the replayed candidate into PATH."""
-    from metaopt.video import VIDEO_FPS, VIDEO_SIZE, film_candidate
+    from metaopt.reporting.video import VIDEO_FPS, VIDEO_SIZE, film_candidate
 
     with RunStore(db_path) as store:
         frames = film_candidate(store, target, registry(), overrides, Path(path))

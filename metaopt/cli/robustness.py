@@ -9,7 +9,7 @@ from pathlib import Path
 
 import click
 
-from metaopt import display, robustness
+from metaopt import robustness
 from metaopt.candidates import Candidate, find_candidates
 from metaopt.cli.common import (
     MAX_INT64,
@@ -24,6 +24,7 @@ from metaopt.errors import ConfigError, SettingWarning
 from metaopt.physics import engine_names
 from metaopt.plugins import registry
 from metaopt.problem import ProblemInfo, Sense
+from metaopt.reporting import display
 from metaopt.settings import parse_problem_settings
 
 
@@ -139,7 +140,7 @@ def robustness_command(
         )  # fmt: skip
         console.print(f"wrote {csv_path}")
     if figure_path is not None:
-        from metaopt.plots import save_figure
+        from metaopt.reporting.plots import save_figure
 
         speed, fell = table.metrics[0], next(m for m in table.metrics if m.startswith("fell"))
         save_figure(

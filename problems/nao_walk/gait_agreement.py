@@ -21,7 +21,7 @@ from pathlib import Path
 import numpy as np
 from scipy.stats import spearmanr
 
-from metaopt.executors import EvaluationTask, Executor
+from metaopt.executors.base import EvaluationTask, Executor
 from metaopt.plugins import registry
 
 #: The twin episode's mass scale: a change far below any physical meaning.

@@ -11,13 +11,13 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.stats import mannwhitneyu
 
-from metaopt.experiment import Cell, Experiment
-from metaopt.experiment_store import ExperimentStore
+from metaopt.comparison.experiment import Cell, Experiment
 from metaopt.params import resolve
 from metaopt.plugins import Registry
 from metaopt.problem import Sense
-from metaopt.result_table import Column, ResultTable, Row
-from metaopt.store import RunRecord
+from metaopt.reporting.result_table import Column, ResultTable, Row
+from metaopt.storage.experiment_store import ExperimentStore
+from metaopt.storage.run_store import RunRecord
 
 
 @dataclass(frozen=True)

@@ -17,7 +17,7 @@ import numpy as np
 from metaopt.errors import ConfigError, MetaoptError
 from metaopt.plugins import Registry
 from metaopt.replay import replay_params, stored_candidate
-from metaopt.store import RunStore
+from metaopt.storage.run_store import RunStore
 
 #: Video size (width, height), pixels, and frames per second of simulated time.
 VIDEO_SIZE = (480, 360)

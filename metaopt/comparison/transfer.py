@@ -6,7 +6,8 @@ from __future__ import annotations
 from collections.abc import Sequence
 from dataclasses import dataclass
 
-from metaopt.comparison import (
+from metaopt.comparison.experiment import Experiment
+from metaopt.comparison.summary import (
     CellRuns,
     center,
     describe,
@@ -16,13 +17,12 @@ from metaopt.comparison import (
     shown_metrics,
 )
 from metaopt.errors import ConfigError
-from metaopt.experiment import Experiment
-from metaopt.experiment_store import ExperimentStore
 from metaopt.params import resolve
 from metaopt.physics import engine_names
 from metaopt.plugins import Registry
 from metaopt.replay import Replay, replay_candidate
-from metaopt.result_table import Column, ResultTable, Row
+from metaopt.reporting.result_table import Column, ResultTable, Row
+from metaopt.storage.experiment_store import ExperimentStore
 
 
 @dataclass(frozen=True)

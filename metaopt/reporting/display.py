@@ -25,7 +25,7 @@ from rich.table import Table
 from metaopt.params import Param
 from metaopt.replay import Replay, SeedReplay
 from metaopt.run_loop import RunResult
-from metaopt.store import CandidateRecord, RunRecord
+from metaopt.storage.run_store import CandidateRecord, RunRecord
 
 PROGRESS_REFRESH = 0.1
 

@@ -10,13 +10,13 @@ from contextlib import AbstractContextManager
 from dataclasses import asdict, dataclass
 from multiprocessing.synchronize import Event as EventType
 
+from metaopt.comparison.experiment import Cell, Experiment
 from metaopt.errors import ConfigError
-from metaopt.executors import EvaluationTask, Executor
-from metaopt.experiment import Cell, Experiment
-from metaopt.experiment_store import ExperimentStore
+from metaopt.executors.base import EvaluationTask, Executor
 from metaopt.plugins import Registry, registry
 from metaopt.run_loop import Progress, RunSpec, resume, run, stop_on_sigterm
-from metaopt.store import RunRecord
+from metaopt.storage.experiment_store import ExperimentStore
+from metaopt.storage.run_store import RunRecord
 
 #: Given a label, a context manager that yields the progress observer of one run.
 WatchRun = Callable[[str], AbstractContextManager[Progress | None]]

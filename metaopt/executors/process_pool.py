@@ -15,7 +15,7 @@ from concurrent.futures import Future
 from dataclasses import dataclass
 from multiprocessing.connection import Connection, wait
 
-from metaopt.executors import (
+from metaopt.executors.base import (
     EvaluationTask,
     Executor,
     Outcome,

@@ -12,7 +12,7 @@ import numpy as np
 from matplotlib.axes import Axes
 from matplotlib.figure import Figure
 
-from metaopt.convergence import Band, Convergence
+from metaopt.reporting.convergence import Band, Convergence
 
 #: Resolution of saved figures, dots per inch (6.4 x 4.8 in -> 640 x 480 px).
 DPI = 100

@@ -14,14 +14,14 @@ from pathlib import Path
 
 from matplotlib.figure import Figure
 
-from metaopt.convergence import best_so_far_band, group_runs, mean_band, run_convergence
+from metaopt.comparison.experiment import Experiment
 from metaopt.errors import ConfigError
-from metaopt.experiment import Experiment
-from metaopt.experiment_store import ExperimentStore
-from metaopt.plots import bands_figure, convergence_figure, save_figure
 from metaopt.plugins import Registry
 from metaopt.replay import replay_params
-from metaopt.store import RunRecord, RunStore
+from metaopt.reporting.convergence import best_so_far_band, group_runs, mean_band, run_convergence
+from metaopt.reporting.plots import bands_figure, convergence_figure, save_figure
+from metaopt.storage.experiment_store import ExperimentStore
+from metaopt.storage.run_store import RunRecord, RunStore
 
 
 @dataclass

@@ -7,7 +7,7 @@ import json
 from typing import TextIO
 
 from metaopt.errors import ConfigError
-from metaopt.store import RunStore
+from metaopt.storage.run_store import RunStore
 
 FORMATS = ("csv", "json")
 

@@ -14,7 +14,7 @@ from contextlib import contextmanager
 from pathlib import Path
 from typing import Any
 
-from metaopt.store import DEFAULT_DB, RunRecord, RunStore
+from metaopt.storage.run_store import DEFAULT_DB, RunRecord, RunStore
 
 _MEMBERSHIP_SCHEMA = """
 CREATE TABLE IF NOT EXISTS experiment_runs (

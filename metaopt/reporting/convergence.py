@@ -14,7 +14,7 @@ from typing import Any
 import numpy as np
 
 from metaopt.errors import ConfigError
-from metaopt.store import RunRecord, RunStore
+from metaopt.storage.run_store import RunRecord, RunStore
 
 #: How several runs are grouped into bands: by optimizer and every parameter (optimizer's and
 #: problem's), or by optimizer name alone.

@@ -18,7 +18,7 @@ import time
 from concurrent.futures import Future
 
 from metaopt.errors import ConfigError
-from metaopt.executors import EvaluationTask, Executor, Outcome, evaluate_task
+from metaopt.executors.base import EvaluationTask, Executor, Outcome, evaluate_task
 
 #: Tasks handed to Dask per worker thread: a Dask round trip takes milliseconds, so a few wait
 #: ready on each worker and none idles between tasks.
