@@ -19,7 +19,7 @@ from metaopt_problems.nao_walk.stored_gaits import gait_vector, load_gait
 SHORT = {"duration": 3.0, "lock": 1.0}
 
 
-def _problem(backend: str, **params: str):
+def _problem(backend: str, **params: object):
     info = registry().problem("nao-walk")
     given = {"backend": backend, **SHORT, **params}
     return info.factory(**resolve(info.params, given, "nao-walk"))
@@ -66,6 +66,31 @@ def test_engine_score_mean_is_the_engines_mean_and_keeps_the_worst_metrics() -> 
         assert any(f["mujoco"] != f["ode"] for f in fitnesses)  # the mean is not the worst
     finally:
         for problem in (*single.values(), mean, worst):
+            problem.close()
+
+
+def test_engine_cap_caps_each_engine_before_the_mean_or_the_worst() -> None:
+    single = {name: _problem(name) for name in ("mujoco", "ode")}
+    try:
+        alone = [{n: p.evaluate(x, 11).fitness for n, p in single.items()} for x in _candidates()]
+        cap = float(np.median([f for fitnesses in alone for f in fitnesses.values()]))
+        capped = {
+            score: _problem("mujoco+ode", engine_score=score, engine_cap=cap)
+            for score in ("mean", "worst")
+        }
+        try:
+            for x, fitnesses in zip(_candidates(), alone):
+                kept = [min(f, cap) for f in fitnesses.values()]
+                assert capped["mean"].evaluate(x, 11).fitness == pytest.approx(np.mean(kept))
+                assert capped["worst"].evaluate(x, 11).fitness == min(kept)
+            # the cap bites: some engine's fitness is above it, some below
+            assert any(f > cap for fs in alone for f in fs.values())
+            assert any(f < cap for fs in alone for f in fs.values())
+        finally:
+            for problem in capped.values():
+                problem.close()
+    finally:
+        for problem in single.values():
             problem.close()
 
 

@@ -91,7 +91,7 @@ PARAMS = (
     Param("engine_cap", float, math.inf, "with several engines: each engine's fitness counts "
           "at most this before engine_score takes the worst or the mean (inf = no cap): with "
           "the mean, going past the cap on one engine stops paying, so the slower engines "
-          "must catch up", low=0.0, low_open=True),
+          "must catch up"),
     Param("controller", str, "paper", "paper (the paper's CPG and its 10 parameters), "
           "extended (sway, knee lift, torso feedback; docs/nao-walk.md), stride (extended, "
           "with a knee phase and an ankle push-off) or steered (stride, with heading "
