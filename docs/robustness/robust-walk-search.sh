@@ -1,23 +1,23 @@
 #!/bin/bash
 # The robust-walk search of docs/robustness.md (issue 16, part 4), one seed per call:
-#   bash docs/robustness/robust-walk-search.sh SEED     (about 15 minutes on 2 cores)
+#   bash docs/robustness/robust-walk-search.sh SEED     (about 11 minutes on 2 cores)
 # The steered controller: the stride one with heading feedback (it steps further with one leg
 # than with the other to turn back to the heading it started with).
 # Stage 1: four HS runs from random gaits on MuJoCo alone, nominal world, with the flight
 #   penalty (a walk, not a run), run seeds 10 SEED + 1 ... + 4, two candidates per batch, one
 #   per worker (HS improvises one at a time by default): gaits that walk, found cheaply.
 # Stage 1b: HS from their four bests (each, then gaits within 5 % of each range around each in
-#   turn) on PyBullet and ODE, scored by the mean of the two engines' progress, a fall costing
-#   1 m and the walk it cut short (fitness=progress), at flight penalty 50. Why: MuJoCo finds
-#   walkers, PyBullet and ODE select them (docs/robustness.md, "Do the engines agree on
-#   gaits?": every gait walking 3 m on PyBullet or ODE walks on MuJoCo, not the reverse).
+#   turn) on all three engines at noise 0.1, scored by the mean of the engines' progress, each
+#   capped at 6 m (engine_cap: 0.5 m/s over the 12 s walked; past it an engine's progress stops
+#   paying, so a gait that MuJoCo already walks fast is pushed to walk on PyBullet and ODE),
+#   a fall costing 1 m and the walk it cut short (fitness=progress), at flight penalty 50.
 # Re-check: stage 1b's 8 best candidates over the standard table, one seed per cell (drawn
 #   from 1), ranked by their worst engine's mean fitness (robust fitness, flight penalty 100):
-#   the run's best is the luckiest of 800 one-world scores, not the one that holds best.
+#   the run's best is the luckiest of 800 one-episode scores, not the one that holds best.
 # Then the chosen candidate over the whole standard table on the standard seeds (drawn from 0).
-# This is the seventh search. The sixth (stage 1b scored by the worse engine at flight penalty
-# 100, then a stage 2 in 4 sampled worlds) is this script at commit 6e1fe34, the fifth at
-# 3c8db53, the fourth at ff6956d, the third at abce00d, the second at 9d03e62.
+# This is the ninth search. The seventh (stage 1b on PyBullet and ODE, uncapped, noise-free) is
+# this script at commit 3c42de4, the sixth at 6e1fe34, the fifth at 3c8db53, the fourth at
+# ff6956d, the third at abce00d, the second at 9d03e62.
 set -euo pipefail
 seed=${1:?usage: [STAGE1B_BUDGET=N TOP=K] robust-walk-search.sh SEED}
 stage1b_budget=${STAGE1B_BUDGET:-800}
@@ -31,8 +31,8 @@ for run in 1 2 3 4; do
 done
 metaopt run -o hs -p nao-walk --budget "$stage1b_budget" --seed "$seed" --start-from 1 \
     --start-from 2 --start-from 3 --start-from 4 "${walk[@]}" --set flight_penalty=50 \
-    --set backend=pybullet+ode --set engine_score=mean --set fitness=progress --workers 2 \
-    --batch 2 --db "$db"
+    --set backend=mujoco+pybullet+ode --set engine_score=mean --set engine_cap=6 \
+    --set noise=0.1 --set fitness=progress --workers 2 --batch 2 --db "$db"
 metaopt robustness 5 --top "$top" --seeds 1 --seed 1 --set fitness=robust \
     --set flight_penalty=100 --workers 2 --db "$db" --csv "robust-walk-s$seed-top.csv" \
     | tee "robust-walk-s$seed-top.txt"
