@@ -30,7 +30,7 @@ def metaopt_problems() -> list:
 
 @hookspec
 def metaopt_executors() -> list:
-    """Return ways to run evaluations, as a list of ``metaopt.executors.base.ExecutorInfo``.
+    """Return ways to run evaluations, as a list of ``metaopt.executors.ExecutorInfo``.
 
     An executor takes ``EvaluationTask`` objects and returns ``concurrent.futures.Future``
     objects of ``Outcome`` (e.g. local processes, Dask; an outside package could add Ray or MPI).
