@@ -70,24 +70,30 @@ def test_engine_score_mean_is_the_engines_mean_and_keeps_the_worst_metrics() -> 
 
 
 def test_engine_cap_caps_each_engine_before_the_mean_or_the_worst() -> None:
-    single = {name: _problem(name) for name in ("mujoco", "ode")}
+    walk = {"controller": "steered", "duration": 6.0}  # 3 s of walking
+    single = {name: _problem(name, **walk) for name in ("mujoco", "ode")}
+    space = single["mujoco"].space
+    rng = np.random.default_rng(5)
+    random = [space.lower + rng.random(space.dim) * space.width for _ in range(3)]
+    candidates = [gait_vector(load_gait("capped_walk")), *random]
     try:
-        alone = [{n: p.evaluate(x, 11).fitness for n, p in single.items()} for x in _candidates()]
-        cap = float(np.median([f for fitnesses in alone for f in fitnesses.values()]))
+        alone = [{n: p.evaluate(x, 11).fitness for n, p in single.items()} for x in candidates]
+        cap = float(np.mean(list(alone[0].values())))  # between the stored gait's two engines
+        assert min(alone[0].values()) < cap < max(alone[0].values())
         capped = {
-            score: _problem("mujoco+ode", engine_score=score, engine_cap=cap)
+            score: _problem("mujoco+ode", engine_score=score, engine_cap=cap, **walk)
             for score in ("mean", "worst")
         }
+        uncapped = _problem("mujoco+ode", engine_score="mean", engine_cap=0.0, **walk)
         try:
-            for x, fitnesses in zip(_candidates(), alone):
+            for x, fitnesses in zip(candidates, alone):
                 kept = [min(f, cap) for f in fitnesses.values()]
                 assert capped["mean"].evaluate(x, 11).fitness == pytest.approx(np.mean(kept))
                 assert capped["worst"].evaluate(x, 11).fitness == min(kept)
-            # the cap bites: some engine's fitness is above it, some below
-            assert any(f > cap for fs in alone for f in fs.values())
-            assert any(f < cap for fs in alone for f in fs.values())
+                plain = np.mean(list(fitnesses.values()))
+                assert uncapped.evaluate(x, 11).fitness == pytest.approx(plain)  # 0: no cap
         finally:
-            for problem in capped.values():
+            for problem in (*capped.values(), uncapped):
                 problem.close()
     finally:
         for problem in single.values():

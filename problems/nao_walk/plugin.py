@@ -88,10 +88,10 @@ PARAMS = (
     Param("engine_score", str, "worst", "with several engines: worst (the fitness is the worst "
           "engine's) or mean (their mean; the plain metrics stay the worst engine's)",
           choices=ENGINE_SCORES),
-    Param("engine_cap", float, math.inf, "with several engines: each engine's fitness counts "
-          "at most this before engine_score takes the worst or the mean (inf = no cap): with "
-          "the mean, going past the cap on one engine stops paying, so the slower engines "
-          "must catch up"),
+    Param("engine_cap", float, 0.0, "with several engines: each engine's fitness counts at "
+          "most this before engine_score takes the worst or the mean (0 = no cap): with the "
+          "mean, going past the cap on one engine stops paying, so the slower engines must "
+          "catch up", low=0.0),
     Param("controller", str, "paper", "paper (the paper's CPG and its 10 parameters), "
           "extended (sway, knee lift, torso feedback; docs/nao-walk.md), stride (extended, "
           "with a knee phase and an ankle push-off) or steered (stride, with heading "
@@ -185,7 +185,7 @@ class NaoWalk(Problem):
         flight_penalty: float = 0.0,
         worlds: str = "none",
         engine_score: str = "worst",
-        engine_cap: float = math.inf,
+        engine_cap: float = 0.0,
     ) -> None:
         #: every parameter, to build the perturbed worlds from (worlds=standard)
         self._params = {k: v for k, v in locals().items() if k not in ("self", "__class__")}
@@ -306,7 +306,8 @@ class NaoWalk(Problem):
         for engine, evaluation in on_engine.items():
             for name, value in evaluation.metrics.items():
                 metrics[f"{name}@{engine}"] = value
-        scores = [min(e.fitness, self.engine_cap) for e in on_engine.values()]
+        cap = self.engine_cap or math.inf
+        scores = [min(e.fitness, cap) for e in on_engine.values()]
         if self.engine_score == "mean":
             return Evaluation(float(np.mean(scores)), metrics)
         return Evaluation(min(scores), metrics)
