@@ -1,41 +1,55 @@
 #!/bin/bash
 # The robust-walk search of docs/robustness.md (issue 16, part 4), one seed per call:
-#   bash docs/robustness/robust-walk-search.sh SEED     (about 11 minutes on 2 cores)
-# The steered controller: the stride one with heading feedback (it steps further with one leg
-# than with the other to turn back to the heading it started with).
-# Stage 1: four HS runs from random gaits on MuJoCo alone, nominal world, with the flight
-#   penalty (a walk, not a run), run seeds 10 SEED + 1 ... + 4, two candidates per batch, one
-#   per worker (HS improvises one at a time by default): gaits that walk, found cheaply.
-# Stage 1b: HS from their four bests (each, then gaits within 5 % of each range around each in
-#   turn) on all three engines at noise 0.1, scored by the mean of the engines' progress, each
-#   capped at 6 m (engine_cap: 0.5 m/s over the 12 s walked; past it an engine's progress stops
-#   paying, so a gait that MuJoCo already walks fast is pushed to walk on PyBullet and ODE),
-#   a fall costing 1 m and the walk it cut short (fitness=progress), at flight penalty 50.
-# Re-check: stage 1b's 8 best candidates over the standard table, one seed per cell (drawn
-#   from 1), ranked by their worst engine's mean fitness (robust fitness, flight penalty 100):
-#   the run's best is the luckiest of 800 one-episode scores, not the one that holds best.
+#   bash docs/robustness/robust-walk-search.sh SEED     (about 24 minutes on 2 cores)
+# Three independent pipelines, then a choice among their best candidates over the whole table.
+# Each pipeline (p = 1, 2, 3), with the steered controller (the stride one with heading
+# feedback: it steps further with one leg than with the other to turn back to its heading):
+#   Stage 1: four HS runs from random gaits on MuJoCo alone, nominal world, with the flight
+#     penalty (a walk, not a run), run seeds 100 SEED + 10 p + 1 ... + 4, two candidates per
+#     batch, one per worker (HS improvises one at a time by default): gaits that walk, found
+#     cheaply; about half the runs find a walker.
+#   Stage 1b: HS (run seed 10 SEED + p) from their four bests (each, then gaits within 5 % of
+#     each range around each in turn) on all three engines at noise 0.1, scored by the mean of
+#     the engines' progress, each capped at 6 m (engine_cap: 0.5 m/s over the 12 s walked; past
+#     it an engine's progress stops paying, so a gait MuJoCo already walks fast is pushed to
+#     walk on PyBullet and ODE), a fall costing 1 m and the walk it cut short
+#     (fitness=progress), at flight penalty 50; 600 evaluations.
+# Re-check: each stage 1b's 3 best candidates (9 in all) over the standard table, one seed per
+#   cell (drawn from 1), ranked by their worst engine's mean fitness (robust fitness, flight
+#   penalty 100): a run's best is the luckiest of hundreds of one-episode scores, and which
+#   pipeline's basin holds best is only seen over the table.
 # Then the chosen candidate over the whole standard table on the standard seeds (drawn from 0).
-# This is the ninth search. The seventh (stage 1b on PyBullet and ODE, uncapped, noise-free) is
-# this script at commit 3c42de4, the sixth at 6e1fe34, the fifth at 3c8db53, the fourth at
-# ff6956d, the third at abce00d, the second at 9d03e62.
+# This is the tenth search. The ninth (one pipeline of 800 evaluations in stage 1b, its 8 best
+# re-checked) is this script at commit 5ed7043, the seventh at 3c42de4, the sixth at 6e1fe34, the fifth at
+# 3c8db53, the fourth at ff6956d, the third at abce00d, the second at 9d03e62.
 set -euo pipefail
 seed=${1:?usage: [STAGE1B_BUDGET=N TOP=K] robust-walk-search.sh SEED}
-stage1b_budget=${STAGE1B_BUDGET:-800}
-top=${TOP:-8}
+stage1b_budget=${STAGE1B_BUDGET:-600}
+top=${TOP:-3}
 db=robust-walk-s$seed.db
 if [ -e "$db" ]; then echo "$db exists: the stages number their runs from 1" >&2; exit 2; fi
 walk=(--set controller=steered)
-for run in 1 2 3 4; do
-    metaopt run -o hs -p nao-walk --budget 1000 --seed $((10 * seed + run)) "${walk[@]}" \
-        --set flight_penalty=20 --workers 2 --batch 2 --db "$db"
+run=0
+finals=()
+for p in 1 2 3; do
+    starts=()
+    for r in 1 2 3 4; do
+        metaopt run -o hs -p nao-walk --budget 1000 --seed $((100 * seed + 10 * p + r)) \
+            "${walk[@]}" --set flight_penalty=20 --workers 2 --batch 2 --db "$db"
+        run=$((run + 1))
+        starts+=(--start-from "$run")
+    done
+    metaopt run -o hs -p nao-walk --budget "$stage1b_budget" --seed $((10 * seed + p)) \
+        "${starts[@]}" "${walk[@]}" --set flight_penalty=50 \
+        --set backend=mujoco+pybullet+ode --set engine_score=mean --set engine_cap=6 \
+        --set noise=0.1 --set fitness=progress --workers 2 --batch 2 --db "$db"
+    run=$((run + 1))
+    finals+=("$run")
 done
-metaopt run -o hs -p nao-walk --budget "$stage1b_budget" --seed "$seed" --start-from 1 \
-    --start-from 2 --start-from 3 --start-from 4 "${walk[@]}" --set flight_penalty=50 \
-    --set backend=mujoco+pybullet+ode --set engine_score=mean --set engine_cap=6 \
-    --set noise=0.1 --set fitness=progress --workers 2 --batch 2 --db "$db"
-metaopt robustness 5 --top "$top" --seeds 1 --seed 1 --set fitness=robust \
+metaopt robustness "${finals[@]}" --top "$top" --seeds 1 --seed 1 --set fitness=robust \
     --set flight_penalty=100 --workers 2 --db "$db" --csv "robust-walk-s$seed-top.csv" \
     | tee "robust-walk-s$seed-top.txt"
-chosen=$(grep -m1 -o "run 5 candidate [0-9]*" "robust-walk-s$seed-top.txt" | awk '{print $4}')
-metaopt robustness "5:$chosen" --seeds 10 --workers 2 --db "$db" \
+chosen=$(grep -m1 -oE "run [0-9]+ candidate [0-9]+" "robust-walk-s$seed-top.txt" \
+    | awk '{print $2 ":" $4}')
+metaopt robustness "$chosen" --seeds 10 --workers 2 --db "$db" \
     --csv "robust-walk-s$seed.csv" --figure "robust-walk-s$seed.png"
