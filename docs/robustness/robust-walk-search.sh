@@ -1,6 +1,6 @@
 #!/bin/bash
 # The robust-walk search of docs/robustness.md (issue 16, part 4), one seed per call:
-#   bash docs/robustness/robust-walk-search.sh SEED     (about 24 minutes on 2 cores)
+#   bash docs/robustness/robust-walk-search.sh SEED     (about 25 minutes on 2 cores)
 # Three independent pipelines, then a choice among their best candidates over the whole table.
 # Each pipeline (p = 1, 2, 3), with the steered controller (the stride one with heading
 # feedback: it steps further with one leg than with the other to turn back to its heading):
@@ -18,9 +18,14 @@
 #   cell (drawn from 1), ranked by their worst engine's mean fitness (robust fitness, flight
 #   penalty 100): a run's best is the luckiest of hundreds of one-episode scores, and which
 #   pipeline's basin holds best is only seen over the table.
+# Race: the re-check's 3 best again over the table, 5 fresh seeds per cell (drawn from 2),
+#   ranked the same way: one seed per cell cannot tell a gait that falls 1 time in 20 from one
+#   that falls 1 time in 10; the winner of 9 noisy scores is the luckiest, and fresh seeds for
+#   the few best correct the luck (racing, as in successive halving).
 # Then the chosen candidate over the whole standard table on the standard seeds (drawn from 0).
-# This is the tenth search. The ninth (one pipeline of 800 evaluations in stage 1b, its 8 best
-# re-checked) is this script at commit 5ed7043, the seventh at 3c42de4, the sixth at 6e1fe34, the fifth at
+# This is the eleventh search; the tenth is this script without the race (commit 208ebc5).
+# The ninth (one pipeline of 800 evaluations in stage 1b, its 8 best re-checked) is this
+# script at commit 5ed7043, the seventh at 3c42de4, the sixth at 6e1fe34, the fifth at
 # 3c8db53, the fourth at ff6956d, the third at abce00d, the second at 9d03e62.
 set -euo pipefail
 seed=${1:?usage: [STAGE1B_BUDGET=N TOP=K] robust-walk-search.sh SEED}
@@ -49,7 +54,12 @@ done
 metaopt robustness "${finals[@]}" --top "$top" --seeds 1 --seed 1 --set fitness=robust \
     --set flight_penalty=100 --workers 2 --db "$db" --csv "robust-walk-s$seed-top.csv" \
     | tee "robust-walk-s$seed-top.txt"
-chosen=$(grep -m1 -oE "run [0-9]+ candidate [0-9]+" "robust-walk-s$seed-top.txt" \
+finalists=$(grep -oE "run [0-9]+ candidate [0-9]+" "robust-walk-s$seed-top.txt" | head -3 \
+    | awk '{print $2 ":" $4}')
+# shellcheck disable=SC2086  # one word per finalist
+metaopt robustness $finalists --seeds 5 --seed 2 --set fitness=robust --set flight_penalty=100 \
+    --workers 2 --db "$db" --csv "robust-walk-s$seed-race.csv" | tee "robust-walk-s$seed-race.txt"
+chosen=$(grep -m1 -oE "run [0-9]+ candidate [0-9]+" "robust-walk-s$seed-race.txt" \
     | awk '{print $2 ":" $4}')
 metaopt robustness "$chosen" --seeds 10 --workers 2 --db "$db" \
     --csv "robust-walk-s$seed.csv" --figure "robust-walk-s$seed.png"
