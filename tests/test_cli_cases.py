@@ -21,6 +21,7 @@ from click.testing import CliRunner
 
 from metaopt.cli import main
 from tests.conftest import metaopt_cli
+from tests.engines import needs_ode
 
 BASIC = {"METAOPT_LOAD_PLUGINS": "harmony_search,genetic_algorithm,random_search,functions"}
 #: nao-walk kept short: 1 s episodes after a 0.2 s lock phase.
@@ -356,3 +357,29 @@ def test_dask_wall_time_includes_starting_the_cluster(tmp_path):
     assert starting > 0.05
     shown = json.loads(in_process("show", "1", "--format", "json", folder=tmp_path))
     assert shown["wall_time"] > starting
+
+
+def _strict_json(text: str):
+    """Parsed as strict JSON: Infinity, -Infinity and NaN are not JSON numbers."""
+
+    def refuse(constant: str):
+        raise ValueError(f"{constant} is not JSON")
+
+    return json.loads(text, parse_constant=refuse)
+
+
+@needs_ode
+def test_infinite_settings_export_as_strict_json_that_reads_back(tmp_path):
+    """An infinite friction (ODE's dInfinity, which nao-walk accepts there) is written as
+    "inf", which float() reads back, by export and show alike: strict JSON readers refuse
+    Python's Infinity."""
+    done = metaopt_cli(
+        "run", "-o", "hs", "-p", "nao-walk", "--budget", "2", "--seed", "1", "--set", "hms=2",
+        "--set", "backend=ode", "--set", "friction=inf", *SHORT_WALK, cwd=tmp_path,
+    )  # fmt: skip
+    assert done.returncode == 0, done.stderr
+    exported = _strict_json(in_process("export", "1", "--format", "json", folder=tmp_path))
+    shown = _strict_json(in_process("show", "1", "--format", "json", folder=tmp_path))
+    for params in (exported["run"]["problem_params"], shown["problem_params"]):
+        assert params["friction"] == "inf" and float(params["friction"]) == float("inf")
+    assert len(exported["evaluations"]) == 2

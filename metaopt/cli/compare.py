@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import json
 import sys
 from collections import Counter
 from pathlib import Path
@@ -36,6 +35,7 @@ from metaopt.reporting import display
 from metaopt.reporting.result_table import ResultTable
 from metaopt.run_loop import RunInterrupted
 from metaopt.storage.experiment_store import ExperimentStore
+from metaopt.storage.export import dump_json
 
 DEFAULT_SEEDS = 5
 #: More seeds than this is a typing slip: a compare runs one run per seed and cell.
@@ -270,8 +270,7 @@ def _show(table: ResultTable, csv_path: str | None, fmt: str) -> None:
     elif fmt == "csv":
         table.write_csv(sys.stdout)
     else:
-        json.dump(table.to_records(), sys.stdout, indent=1)
-        sys.stdout.write("\n")
+        dump_json(table.to_records(), sys.stdout)
     if csv_path is not None:
         with written_whole(Path(csv_path)) as handle:
             table.write_csv(handle)

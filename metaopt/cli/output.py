@@ -16,6 +16,7 @@ from typing import Any, TextIO
 import click
 
 from metaopt.errors import ConfigError
+from metaopt.storage.export import dump_json
 
 OUTPUT_FORMATS = ("table", "csv", "json")
 format_option = click.option(
@@ -87,8 +88,7 @@ def print_records(records: list[dict[str, Any]] | dict[str, Any], fmt: str) -> N
     """Records (or one record) on stdout as JSON, or as CSV: one column per key, nested
     values as JSON."""
     if fmt == "json":
-        json.dump(records, sys.stdout, indent=1)
-        sys.stdout.write("\n")
+        dump_json(records, sys.stdout)
         return
     if isinstance(records, dict):
         records = [records]

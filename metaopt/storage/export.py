@@ -4,12 +4,32 @@ from __future__ import annotations
 
 import csv
 import json
-from typing import TextIO
+import math
+from typing import Any, TextIO
 
 from metaopt.errors import ConfigError
 from metaopt.storage.run_store import RunStore
 
 FORMATS = ("csv", "json")
+
+
+def finite_json(value: Any) -> Any:
+    """``value`` with every infinite or NaN float written as the string float() reads back
+    ("inf", "-inf", "nan"): strict JSON has no such numbers, and Python's ``Infinity`` breaks
+    other readers (a problem parameter of ``inf``, a metric that diverged)."""
+    if isinstance(value, float) and not math.isfinite(value):
+        return repr(value)
+    if isinstance(value, dict):
+        return {key: finite_json(item) for key, item in value.items()}
+    if isinstance(value, list | tuple):
+        return [finite_json(item) for item in value]
+    return value
+
+
+def dump_json(value: Any, out: TextIO) -> None:
+    """``value`` as strict JSON (see finite_json), indented, with a final newline."""
+    json.dump(finite_json(value), out, indent=1, allow_nan=False)
+    out.write("\n")
 
 
 def export_run(store: RunStore, run_id: int | str, fmt: str, out: TextIO) -> int:
@@ -22,7 +42,7 @@ def export_run(store: RunStore, run_id: int | str, fmt: str, out: TextIO) -> int
     names = [v["name"] for v in run.space]
     evaluations = list(store.evaluations(run.id))
     if fmt == "json":
-        json.dump(
+        dump_json(
             {
                 "run": {
                     "id": run.id,
@@ -56,9 +76,7 @@ def export_run(store: RunStore, run_id: int | str, fmt: str, out: TextIO) -> int
                 ],
             },
             out,
-            indent=1,
         )
-        out.write("\n")
         return len(evaluations)
     metric_names = sorted({name for e in evaluations for name in e.metrics})
     writer = csv.writer(out, lineterminator="\n")
