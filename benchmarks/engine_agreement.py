@@ -1,4 +1,4 @@
-"""The engine agreement table: every figure of metaopt.engine_agreement on every installed
+"""The engine agreement table: every figure of metaopt.physics.agreement on every installed
 physics engine, side by side, as a markdown table (docs/nao-walk.md, "Engines that agree").
 
 A cell holds the measured figure, marked ✗ where it is off its prediction by more than the
@@ -11,8 +11,8 @@ from __future__ import annotations
 
 import argparse
 
-from metaopt.engine_agreement import MEASUREMENTS, Figure, measure
 from metaopt.errors import MetaoptError
+from metaopt.physics.agreement import MEASUREMENTS, Figure, measure
 from metaopt.plugins import registry
 
 

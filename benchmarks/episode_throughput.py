@@ -28,7 +28,7 @@ import time
 
 import numpy as np
 
-from metaopt.engine_agreement import engine as physics_engine
+from metaopt.physics.agreement import engine as physics_engine
 from metaopt.plugins import registry
 from metaopt_problems.nao_walk.episode import DRIVEN_JOINTS, EpisodeRunner, EpisodeSettings
 from metaopt_problems.nao_walk.plugin import NaoWalk

@@ -19,7 +19,7 @@ import math
 
 import numpy as np
 
-from metaopt.engine_agreement import engine
+from metaopt.physics.agreement import engine
 from metaopt.plugins import registry
 from metaopt_problems.nao_walk.stored_gaits import gait_problem, gait_vector, load_gait
 

@@ -16,7 +16,7 @@ from metaopt.space import Space
 if TYPE_CHECKING:
     from matplotlib.figure import Figure
 
-    from metaopt.robustness import PerturbationTable
+    from metaopt.assessment.robustness import PerturbationTable
 
 
 class Sense(str, enum.Enum):

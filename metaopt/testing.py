@@ -20,7 +20,7 @@ or get one pytest test per check::
 
 A physics engine (a ``metaopt_physics_backends`` plugin) gets the engine agreement suite: what
 it simulates, measured from it (friction, motors, mass, standing, free fall; see
-metaopt.engine_agreement)::
+metaopt.physics.agreement)::
 
     def test_my_engine_agrees():
         check_engine("my-engine")
@@ -49,11 +49,11 @@ from typing import Any
 
 import numpy as np
 
-from metaopt.engine_agreement import MEASUREMENTS, measure
 from metaopt.errors import ConfigError
 from metaopt.optimizer import Optimizer, OptimizerInfo
 from metaopt.params import Param, resolve
 from metaopt.physics import BackendInfo
+from metaopt.physics.agreement import MEASUREMENTS, measure
 from metaopt.plugins import registry
 from metaopt.problem import Evaluation, Problem, ProblemInfo, Sense
 from metaopt.seeding import EvaluationSeeds
@@ -156,7 +156,7 @@ def check_engine(backend: str | BackendInfo) -> None:
 
 
 def engine_checks(backend: str | BackendInfo) -> dict[str, Check]:
-    """The engine agreement checks by name (metaopt.engine_agreement.MEASUREMENTS), each
+    """The engine agreement checks by name (metaopt.physics.agreement.MEASUREMENTS), each
     measuring a fresh simulation of the NAO on the engine and raising ConformanceError when a
     figure is off its prediction by more than its tolerance."""
     return {name: partial(_check_agreement, backend, name) for name in MEASUREMENTS}

@@ -16,7 +16,7 @@ import argparse
 
 import numpy as np
 
-from metaopt.robustness import summarize
+from metaopt.assessment.robustness import summarize
 from metaopt.seeding import EvaluationSeeds
 from metaopt_problems.nao_walk.episode import heading
 from metaopt_problems.nao_walk.plugin import NaoWalk

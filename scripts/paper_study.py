@@ -26,9 +26,9 @@ from pathlib import Path
 
 import numpy as np
 
+from metaopt.assessment.replay import replay_params, stored_candidate
 from metaopt.comparison.experiment import load_experiment
 from metaopt.plugins import Registry, registry
-from metaopt.replay import replay_params, stored_candidate
 from metaopt.storage.experiment_store import ExperimentStore
 from metaopt_problems.nao_walk.controller import (
     MatsuokaCpg,

@@ -75,10 +75,10 @@ def record(db: Path, target: str, command: str, description: str, claims: list[s
     """The gait record of ``target`` in ``db``: a run's best candidate (by its aggregate over
     its samples when the run resampled, as the optimizer saw it) or RUN:NUMBER, another one
     (e.g. the one `metaopt robustness RUN --top K` ranked first)."""
+    from metaopt.assessment.replay import stored_candidate
     from metaopt.errors import StoreError
     from metaopt.params import resolve
     from metaopt.plugins import registry
-    from metaopt.replay import stored_candidate
     from metaopt.storage.run_store import RunStore
 
     with RunStore(db) as store:

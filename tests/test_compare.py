@@ -14,6 +14,7 @@ import numpy as np
 import pytest
 from scipy.stats import mannwhitneyu
 
+from metaopt.assessment.replay import replay_candidate
 from metaopt.comparison.experiment import (
     Experiment,
     experiment_from_flags,
@@ -27,7 +28,6 @@ from metaopt.errors import ConfigError
 from metaopt.executors.base import SerialExecutor
 from metaopt.plugins import registry
 from metaopt.problem import Sense
-from metaopt.replay import replay_candidate
 from metaopt.reporting.result_table import ResultTable
 from metaopt.run_loop import RunInterrupted, RunSettings
 from metaopt.storage.experiment_store import ExperimentStore

@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 from metaopt import ConfigError
-from metaopt.robustness import summarize
+from metaopt.assessment.robustness import summarize
 from metaopt_problems.nao_walk.episode import Sensors
 from metaopt_problems.nao_walk.extended import (
     PARAM_NAMES,

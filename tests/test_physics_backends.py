@@ -10,9 +10,9 @@ import numpy as np
 import pybullet
 import pytest
 
-from metaopt.engine_agreement import engine, measure_friction
 from metaopt.errors import ConfigError, EvaluationError
 from metaopt.physics import PhysicsBackend, PhysicsSettings
+from metaopt.physics.agreement import engine, measure_friction
 from metaopt.plugins import registry
 from metaopt_problems.nao_walk.robot import nao
 from tests.engines import needs_ode

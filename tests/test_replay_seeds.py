@@ -7,10 +7,10 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from metaopt.assessment.replay import replay_seeds
+from metaopt.assessment.robustness import summarize
 from metaopt.executors.base import SerialExecutor
 from metaopt.plugins import registry
-from metaopt.replay import replay_seeds
-from metaopt.robustness import summarize
 from metaopt.seeding import EvaluationSeeds
 from metaopt.storage.run_store import RunStore
 from tests.conftest import metaopt_cli

@@ -11,9 +11,8 @@ import numpy as np
 import pytest
 
 from metaopt import ConfigError
-from metaopt.candidates import Candidate, find_candidate, find_candidates
-from metaopt.plugins import registry
-from metaopt.robustness import (
+from metaopt.assessment.candidates import Candidate, find_candidate, find_candidates
+from metaopt.assessment.robustness import (
     CellResult,
     Perturbation,
     differing_params,
@@ -22,6 +21,7 @@ from metaopt.robustness import (
     tasks,
     whole_table,
 )
+from metaopt.plugins import registry
 from metaopt.storage.run_store import RunStore
 from metaopt_problems.nao_walk.robustness import STANDARD_TABLE
 from metaopt_problems.nao_walk.stored_gaits import gait_vector, load_gait

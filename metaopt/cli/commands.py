@@ -10,7 +10,8 @@ import warnings
 import click
 from rich.markup import escape
 
-from metaopt.candidates import find_start
+from metaopt.assessment.candidates import find_start
+from metaopt.assessment.replay import replay_candidate, replay_seeds
 from metaopt.cli.common import (
     MAX_INT64,
     build_executor,
@@ -28,7 +29,6 @@ from metaopt.cli.report import report, write_replay_video
 from metaopt.cli.robustness import robustness_command
 from metaopt.errors import MetaoptError, SettingWarning
 from metaopt.plugins import registry
-from metaopt.replay import replay_candidate, replay_seeds
 from metaopt.reporting import display
 from metaopt.run_loop import (
     AGGREGATES,

@@ -1,6 +1,6 @@
 """``metaopt robustness RUN|NAME ...``: candidates over their problem's standard perturbation
 table on every installed engine, ranked when there are several (the work is in
-metaopt.robustness)."""
+metaopt.assessment.robustness)."""
 
 from __future__ import annotations
 
@@ -9,8 +9,8 @@ from pathlib import Path
 
 import click
 
-from metaopt import robustness
-from metaopt.candidates import Candidate, find_candidates
+from metaopt.assessment import robustness
+from metaopt.assessment.candidates import Candidate, find_candidates
 from metaopt.cli.common import (
     MAX_INT64,
     build_executor,

@@ -6,6 +6,7 @@ from __future__ import annotations
 from collections.abc import Sequence
 from dataclasses import dataclass
 
+from metaopt.assessment.replay import Replay, replay_candidate
 from metaopt.comparison.experiment import Experiment
 from metaopt.comparison.summary import (
     CellRuns,
@@ -20,7 +21,6 @@ from metaopt.errors import ConfigError
 from metaopt.params import resolve
 from metaopt.physics import engine_names
 from metaopt.plugins import Registry
-from metaopt.replay import Replay, replay_candidate
 from metaopt.reporting.result_table import Column, ResultTable, Row
 from metaopt.storage.experiment_store import ExperimentStore
 

@@ -22,8 +22,8 @@ from rich.progress import (
 )
 from rich.table import Table
 
+from metaopt.assessment.replay import Replay, SeedReplay
 from metaopt.params import Param
-from metaopt.replay import Replay, SeedReplay
 from metaopt.run_loop import RunResult
 from metaopt.storage.run_store import CandidateRecord, RunRecord
 
@@ -350,7 +350,7 @@ def robustness_ranking(ranked: Sequence, version: str, metrics: Sequence[str]) -
     """`metaopt robustness` with several candidates: best first, each with its score (the
     worst engine's mean fitness over the table) and, per engine over the whole table, the
     mean fitness, the first metric's median and the rates."""
-    from metaopt.robustness import whole_table
+    from metaopt.assessment.robustness import whole_table
 
     rates = [m for m in metrics if m.startswith("fell")]
     table = Table(title=f"candidates ranked over perturbation table {version}",
@@ -377,7 +377,7 @@ def robustness_ranking(ranked: Sequence, version: str, metrics: Sequence[str]) -
 def replay_seeds_table(replay: SeedReplay) -> Table:
     """`metaopt replay --seeds N`: the stored best beside the median and interquartile range
     (for 'fell': the rate) of its re-evaluations over N seeds."""
-    from metaopt.robustness import summarize
+    from metaopt.assessment.robustness import summarize
 
     done = [o for o in replay.outcomes if o.fitness is not None]
     failed = len(replay.outcomes) - len(done)

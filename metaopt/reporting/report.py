@@ -14,10 +14,10 @@ from pathlib import Path
 
 from matplotlib.figure import Figure
 
+from metaopt.assessment.replay import replay_params
 from metaopt.comparison.experiment import Experiment
 from metaopt.errors import ConfigError
 from metaopt.plugins import Registry
-from metaopt.replay import replay_params
 from metaopt.reporting.convergence import best_so_far_band, group_runs, mean_band, run_convergence
 from metaopt.reporting.plots import bands_figure, convergence_figure, save_figure
 from metaopt.storage.experiment_store import ExperimentStore

@@ -14,9 +14,9 @@ from typing import Any
 import imageio_ffmpeg
 import numpy as np
 
+from metaopt.assessment.replay import replay_params, stored_candidate
 from metaopt.errors import ConfigError, MetaoptError
 from metaopt.plugins import Registry
-from metaopt.replay import replay_params, stored_candidate
 from metaopt.storage.run_store import RunStore
 
 #: Video size (width, height), pixels, and frames per second of simulated time.

@@ -4,7 +4,7 @@ engines rank the gaits by distance (Spearman), beside each engine's agreement wi
 every mass is scaled by 1 + 10⁻⁶ (a walk is chaotic: this is as close as two runs of one engine
 come, the baseline for two engines).
 
-The engine agreement suite (metaopt.engine_agreement) checks what an engine holds and does in
+The engine agreement suite (metaopt.physics.agreement) checks what an engine holds and does in
 simple experiments (masses, friction, motors, contact forces, free flight); this checks the
 sum of them where it matters, on walking gaits. benchmarks/gait_agreement.py prints it for a
 stored sample (benchmarks/data/gait_sample.json), scripts/engine_transfer.py the transfer rates

@@ -3,7 +3,7 @@ by ``metaopt robustness``. Change a cell, and the version, together."""
 
 from __future__ import annotations
 
-from metaopt.robustness import Perturbation, PerturbationTable
+from metaopt.assessment.robustness import Perturbation, PerturbationTable
 
 #: Every cell runs at this background noise (friction within ±2 %, a 5 mm/s push as walking
 #: starts, 0.1° of hip sensor error), so that N seeds are N different episodes of a chaotic

@@ -10,8 +10,8 @@ from importlib.resources import files
 
 import numpy as np
 
+from metaopt.assessment.robustness import summarize
 from metaopt.problem import StoredCandidate
-from metaopt.robustness import summarize
 from metaopt.seeding import EvaluationSeeds
 
 from .plugin import CONTROLLER_KINDS, NaoWalk

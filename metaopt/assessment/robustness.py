@@ -20,7 +20,7 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from metaopt.candidates import Candidate
+from metaopt.assessment.candidates import Candidate
 from metaopt.errors import ConfigError
 from metaopt.executors.base import EvaluationTask, Executor, Outcome
 from metaopt.params import resolve
