@@ -14,7 +14,7 @@ import numpy as np
 import pytest
 from scipy.stats import mannwhitneyu
 
-from metaopt.assessment.replay import replay_candidate
+from metaopt.assessment.replay import replay_candidate, run_source
 from metaopt.comparison.experiment import (
     Experiment,
     experiment_from_flags,
@@ -373,7 +373,7 @@ def test_transfer_table_values_equal_replays_on_the_other_engine(tmp_path: Path)
         _run(experiment, store)
         transfers = replay_on_other_engines(experiment, store, registry())
         table: ResultTable = transfer_table(experiment, transfers, registry())
-        replays = [replay_candidate(store, run.id, registry(), {"backend": "pybullet"})
+        replays = [replay_candidate(run_source(store, run.id), registry(), {"backend": "pybullet"})
                    for run in store.runs()]  # fmt: skip
     others = [e for e, info in registry().physics_backends.items()
               if e != "mujoco" and not info.unavailable]  # fmt: skip
@@ -382,10 +382,10 @@ def test_transfer_table_values_equal_replays_on_the_other_engine(tmp_path: Path)
     assert (row["found_on"], row["replayed_on"], row["runs"]) == ("mujoco", "pybullet", 2)
     assert [r.replayed.fitness for r in transfer.replays] == [r.replayed.fitness for r in replays]
     assert row["fitness_replayed"] == np.median([r.replayed.fitness for r in replays])
-    assert row["fitness_found"] == np.median([r.stored.fitness for r in replays])
+    assert row["fitness_found"] == np.median([r.source.fitness for r in replays])
     assert row["distance_replayed"] == np.median([r.replayed.metrics["distance"] for r in replays])
     assert row["fell_replayed"] == np.mean([r.replayed.metrics["fell"] for r in replays])
-    gaps = [r.stored.fitness - r.replayed.fitness for r in replays]
+    gaps = [r.source.fitness - r.replayed.fitness for r in replays]
     assert row["fitness_gap"] == pytest.approx(np.median(gaps), rel=1e-12)
 
 

@@ -7,12 +7,14 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from metaopt.assessment.replay import replay_seeds
+from metaopt.assessment.replay import replay_seeds, run_source
 from metaopt.assessment.robustness import summarize
 from metaopt.executors.base import SerialExecutor
+from metaopt.params import resolve
 from metaopt.plugins import registry
 from metaopt.seeding import EvaluationSeeds
 from metaopt.storage.run_store import RunStore
+from metaopt_problems.nao_walk.stored_gaits import gait_seed, gait_vector, load_gait
 from tests.conftest import metaopt_cli
 
 SHORT = ("--set", "duration=4", "--set", "lock=1")
@@ -30,11 +32,11 @@ def store_dir(tmp_path_factory: pytest.TempPathFactory):
 def test_replay_seeds_evaluates_the_best_with_n_drawn_seeds(store_dir) -> None:
     plugins = registry()
     with RunStore(store_dir / "metaopt.db") as store:
-        result = replay_seeds(store, 1, plugins, {"noise": 1.0}, 3, 7, SerialExecutor())
+        result = replay_seeds(run_source(store, 1), plugins, {"noise": 1.0}, 3, 7, SerialExecutor())
     info = plugins.problem("nao-walk")
     problem = info.factory(**result.problem_params)
     try:
-        expected = [problem.evaluate(np.asarray(result.stored.x), EvaluationSeeds(7)(i))
+        expected = [problem.evaluate(np.asarray(result.source.x), EvaluationSeeds(7)(i))
                     for i in range(3)]  # fmt: skip
     finally:
         problem.close()
@@ -60,3 +62,27 @@ def test_replay_seeds_command_is_a_statistic_and_deterministic(store_dir) -> Non
     bad = metaopt_cli("replay", "1", "--seeds", "2", "--set", "push=1", "--set",
                       "push_time=0.5", cwd=store_dir)  # fmt: skip
     assert bad.returncode == 2 and "push_time" in bad.stderr and "Traceback" not in bad.stderr
+
+
+def test_replay_takes_a_stored_gait_by_name_without_a_store(tmp_path) -> None:
+    """`metaopt replay NAME`: a problem's stored candidate, replayed with the parameters and
+    seed it was recorded with (changed by --set), where no run store exists; no 'stored'
+    column, since the record keeps no fitness for those settings."""
+    record = load_gait("hs_walk")
+    done = metaopt_cli("replay", "hs_walk", *SHORT, cwd=tmp_path)
+    assert done.returncode == 0, done.stderr
+    title = " ".join(done.stdout.split())  # the title wraps to the table's width
+    assert "stored candidate hs_walk replayed (duration=4.0, lock=1.0)" in title
+    assert "stored" not in done.stdout.replace("stored candidate", "")
+    info = registry().problem("nao-walk")
+    params = resolve(info.params, {**record["problem_params"], "duration": 4, "lock": 1}, "nao")
+    problem = info.factory(**params)
+    try:
+        expected = problem.evaluate(gait_vector(record), gait_seed(record))
+    finally:
+        problem.close()
+    fitness_row = next(line for line in done.stdout.splitlines() if "fitness" in line)
+    assert f"{expected.fitness:.6g}" in fitness_row
+    assert not (tmp_path / "metaopt.db").exists()
+    unknown = metaopt_cli("replay", "hs_wlak", cwd=tmp_path)
+    assert unknown.returncode == 2 and "neither a stored candidate (capped_walk" in unknown.stderr

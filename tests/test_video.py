@@ -10,6 +10,7 @@ import imageio_ffmpeg
 import numpy as np
 import pytest
 
+from metaopt.assessment.replay import find_source, run_source
 from metaopt.cli.report import write_replay_video
 from metaopt.errors import ConfigError
 from metaopt.physics import PhysicsSettings
@@ -73,7 +74,8 @@ def test_replay_video_is_a_valid_mp4_with_one_frame_per_25th_of_a_second(
     walk_db, tmp_path, engine, capsys
 ):
     path = tmp_path / f"walk-{engine}.mp4"
-    write_replay_video(str(walk_db), "1", {"backend": engine}, str(path))
+    source = find_source("1", registry(), str(walk_db))
+    write_replay_video(source, {"backend": engine}, str(path))
     assert capsys.readouterr().out == f"wrote {path}: 50 frames, 480x360, 25 fps (2.0 s)\n"
     assert imageio_ffmpeg.count_frames_and_secs(str(path)) == (50, 2.0)
     frames = imageio_ffmpeg.read_frames(str(path))
@@ -105,8 +107,9 @@ def test_the_camera_follows_the_torso():
 
 
 def test_a_frame_rate_that_does_not_divide_the_control_rate_is_refused(walk_db, tmp_path):
-    with RunStore(walk_db) as store, pytest.raises(ConfigError, match="50, 25, 10, 5, 2, 1"):
-        film_candidate(store, 1, registry(), {}, tmp_path / "walk.mp4", fps=30)
+    source = find_source("1", registry(), str(walk_db))
+    with pytest.raises(ConfigError, match="50, 25, 10, 5, 2, 1"):
+        film_candidate(source, registry(), {}, tmp_path / "walk.mp4", fps=30)
     assert not (tmp_path / "walk.mp4").exists()
 
 
@@ -115,6 +118,7 @@ def test_a_problem_without_video_says_so_in_one_line(tmp_path):
     with RunStore(tmp_path / "runs.db") as store:
         spec = RunSpec("random", "sphere", 10, 1)
         run(spec, plugins.optimizer("random"), plugins.problem("sphere"), store)
-        with pytest.raises(ConfigError, match=r"^problem 'sphere': cannot show a video$"):
-            film_candidate(store, 1, plugins, {}, tmp_path / "walk.mp4")
+        source = run_source(store, 1)
+    with pytest.raises(ConfigError, match=r"^problem 'sphere': cannot show a video$"):
+        film_candidate(source, plugins, {}, tmp_path / "walk.mp4")
     assert not (tmp_path / "walk.mp4").exists()

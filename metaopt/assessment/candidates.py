@@ -16,7 +16,7 @@ import numpy as np
 
 from metaopt.errors import ConfigError, StoreError
 from metaopt.params import resolve
-from metaopt.problem import ProblemInfo
+from metaopt.problem import ProblemInfo, StoredCandidate
 
 
 @dataclass(frozen=True)
@@ -45,26 +45,15 @@ def find_candidates(
     """``target``'s candidates: a stored candidate or ``RUN:NUMBER`` alone; for a run id, its
     ``top`` best candidates with distinct decision vectors, best first (labelled ``run R``
     when top is 1, else ``run R candidate N``, N being what ``RUN:N`` names)."""
-    for info in problems.values():
-        stored = info.stored_candidates() if info.stored_candidates else {}
-        if target in stored:
-            params = resolve(info.params, stored[target].params, info.name)
-            return [Candidate(target, info.name, params, stored[target].x)], info
+    named = stored_candidate_named(target, problems)
+    if named is not None:
+        stored, info = named
+        params = resolve(info.params, stored.params, info.name)
+        return [Candidate(target, info.name, params, stored.x)], info
     from metaopt.storage.run_store import RunStore
 
+    check_run_target(target, problems, db_path)
     run_id, _, number = target.partition(":")
-    if not run_id.isdigit() or (number and not number.isdigit()) or not Path(db_path).exists():
-        names = sorted(n for i in problems.values() if i.stored_candidates
-                       for n in i.stored_candidates())  # fmt: skip
-        where = (
-            f"a run id or RUN:CANDIDATE in {db_path}"
-            if Path(db_path).exists()
-            else f"no store at {db_path}"
-        )
-        raise ConfigError(
-            f"{target!r} is neither a stored candidate ({', '.join(names) or 'none'}) nor "
-            f"a run ({where})"
-        )
     with RunStore(db_path) as store:
         run = store.run(run_id)
         records = [store.candidate(run, int(number))] if number else store.best_candidates(run, top)
@@ -79,6 +68,35 @@ def find_candidates(
         Candidate(label or f"run {run.id} candidate {r.number}", info.name, params, r.x)
         for r in records
     ], info
+
+
+def stored_candidate_named(
+    name: str, problems: Mapping[str, ProblemInfo]
+) -> tuple[StoredCandidate, ProblemInfo] | None:
+    """The candidate an installed problem keeps as data under ``name``, and that problem."""
+    for info in problems.values():
+        stored = info.stored_candidates() if info.stored_candidates else {}
+        if name in stored:
+            return stored[name], info
+    return None
+
+
+def check_run_target(target: str, problems: Mapping[str, ProblemInfo], db_path: str) -> None:
+    """ConfigError, naming what is accepted, unless ``target`` reads ``RUN`` or ``RUN:NUMBER``
+    and a store exists at db_path (for a target that is no stored candidate's name)."""
+    run_id, _, number = target.partition(":")
+    if not run_id.isdigit() or (number and not number.isdigit()):
+        names = sorted(n for i in problems.values() if i.stored_candidates
+                       for n in i.stored_candidates())  # fmt: skip
+        raise ConfigError(
+            f"{target!r} is neither a stored candidate ({', '.join(names) or 'none'}) nor "
+            "a run (RUN or RUN:CANDIDATE)"
+        )
+    if not Path(db_path).exists():
+        raise ConfigError(
+            f"no run store at {db_path} to find run {target} in; run `metaopt run` first or "
+            "pass --db PATH"
+        )
 
 
 def find_start(

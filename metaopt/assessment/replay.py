@@ -1,5 +1,6 @@
-"""Re-evaluating a stored run's best candidate (or another one, ``RUN:NUMBER``), on the same
-problem settings or changed ones."""
+"""Re-evaluating a candidate on the same problem settings or changed ones: a stored run's best
+(``RUN``), another of its candidates (``RUN:NUMBER``), or a candidate a problem plugin keeps as
+data (``NAME``, e.g. a nao-walk gait)."""
 
 from __future__ import annotations
 
@@ -8,6 +9,7 @@ from typing import Any
 
 import numpy as np
 
+from metaopt.assessment.candidates import check_run_target, stored_candidate_named
 from metaopt.errors import ConfigError, StoreError
 from metaopt.executors.base import (
     EvaluationTask,
@@ -25,13 +27,33 @@ from metaopt.seeding import EvaluationSeeds
 from metaopt.storage.run_store import CandidateRecord, RunRecord, RunStore
 
 
+@dataclass(frozen=True)
+class ReplaySource:
+    """What a replay evaluates again: a candidate, the problem parameters and the (index,
+    seed) of each evaluation it was scored with, and what it scored then (a candidate a
+    problem keeps as data has no stored score: fitness None, no metrics)."""
+
+    label: str
+    problem: str
+    problem_params: dict[str, Any]
+    x: np.ndarray
+    samples: list[tuple[int, int]]
+    aggregate: str = "mean"
+    fitness: float | None = None
+    metrics: dict[str, float] | None = None
+
+    @property
+    def seed(self) -> int:
+        """The first sample's seed: the episode a figure or video of the candidate shows."""
+        return self.samples[0][1]
+
+
 @dataclass
 class Replay:
-    """The stored best candidate beside its re-evaluation (with resampling: every sample again
+    """The stored candidate beside its re-evaluation (with resampling: every sample again
     with its own seed, aggregated alike)."""
 
-    run: RunRecord
-    stored: CandidateRecord
+    source: ReplaySource
     problem_params: dict[str, Any]
     replayed: Outcome
 
@@ -52,10 +74,42 @@ def stored_candidate(store: RunStore, target: int | str) -> tuple[RunRecord, Can
     return run, best
 
 
+def run_source(store: RunStore, target: int | str) -> ReplaySource:
+    """``target``'s candidate in the store (as stored_candidate finds it), to replay."""
+    run, best = stored_candidate(store, target)
+    return ReplaySource(
+        f"run {run.id}, {best.describe()}",
+        run.problem,
+        run.problem_params,
+        np.asarray(best.x),
+        [(e.index, e.seed) for e in best.samples],
+        best.aggregate,
+        best.fitness,
+        best.metrics,
+    )
+
+
+def find_source(target: str, plugins: Registry, db_path: str) -> ReplaySource:
+    """``target`` to replay: a candidate an installed problem keeps as data (``NAME``, with the
+    parameters and seed it was recorded with), else ``RUN`` or ``RUN:NUMBER`` in the store at
+    db_path; ConfigError naming what is accepted otherwise."""
+    named = stored_candidate_named(target, plugins.problems)
+    if named is not None:
+        stored, info = named
+        params = resolve(info.params, stored.params, info.name)
+        return ReplaySource(
+            f"stored candidate {target}", info.name, params, stored.x, [(0, stored.seed)]
+        )
+    check_run_target(target, plugins.problems, db_path)
+    with RunStore(db_path) as store:
+        return run_source(store, target)
+
+
 def replay_params(
-    run: RunRecord, plugins: Registry, overrides: dict[str, Any]
+    run: RunRecord | ReplaySource, plugins: Registry, overrides: dict[str, Any]
 ) -> tuple[ProblemInfo, dict[str, Any]]:
-    """The run's problem and its stored parameters with ``overrides`` applied and checked."""
+    """A run's (or a replay source's) problem and its stored parameters with ``overrides``
+    applied and checked."""
     info = plugins.problem(run.problem)
     declared = {p.name for p in info.params}
     for name in overrides:
@@ -67,28 +121,23 @@ def replay_params(
     return info, resolve(info.params, {**run.problem_params, **overrides}, info.name)
 
 
-def replay_candidate(
-    store: RunStore, target: int | str, plugins: Registry, overrides: dict[str, Any]
-) -> Replay:
-    """Evaluate ``target``'s candidate (a run's best, or ``RUN:NUMBER``) again with its seeds.
+def replay_candidate(source: ReplaySource, plugins: Registry, overrides: dict[str, Any]) -> Replay:
+    """Evaluate ``source``'s candidate again with its seeds.
 
     ``overrides`` changes problem parameters (e.g. ``{"backend": "pybullet"}``); everything else
-    is as stored with the run.
+    is as stored.
     """
-    run, best = stored_candidate(store, target)
-    info, params = replay_params(run, plugins, overrides)
+    info, params = replay_params(source, plugins, overrides)
     problem = info.factory(**params)
     try:
         with adopt_problem(info.factory, params, problem):
             outcomes = [
-                evaluate_task(
-                    EvaluationTask(e.index, np.asarray(best.x), e.seed, info.factory, params)
-                )
-                for e in best.samples
+                evaluate_task(EvaluationTask(index, source.x, seed, info.factory, params))
+                for index, seed in source.samples
             ]
     finally:
         problem.close()
-    return Replay(run, best, params, _combined(outcomes, best.aggregate))
+    return Replay(source, params, _combined(outcomes, source.aggregate))
 
 
 def _combined(outcomes: list[Outcome], aggregate: str) -> Outcome:
@@ -105,38 +154,35 @@ def _combined(outcomes: list[Outcome], aggregate: str) -> Outcome:
 
 @dataclass
 class SeedReplay:
-    """The stored best evaluation beside its re-evaluations with fresh seeds."""
+    """The stored candidate beside its re-evaluations with fresh seeds."""
 
-    run: RunRecord
-    stored: CandidateRecord
+    source: ReplaySource
     problem_params: dict[str, Any]
     outcomes: list[Outcome]
 
 
 def replay_seeds(
-    store: RunStore,
-    target: int | str,
+    source: ReplaySource,
     plugins: Registry,
     overrides: dict[str, Any],
     seeds: int,
     seed: int,
     executor: Executor,
 ) -> SeedReplay:
-    """Evaluate ``target``'s candidate (as replay_candidate) with ``seeds`` evaluation seeds
-    drawn from ``seed`` (not the one it was found with): on a noisy problem, what the
-    candidate does rather than what one episode did. ``overrides`` as for replay_candidate."""
+    """Evaluate ``source``'s candidate with ``seeds`` evaluation seeds drawn from ``seed``
+    (not the one it was found with): on a noisy problem, what the candidate does rather than
+    what one episode did. ``overrides`` as for replay_candidate."""
     if seeds < 1:
         raise ConfigError(f"seeds must be at least 1, got {seeds}")
-    run, best = stored_candidate(store, target)
-    info, params = replay_params(run, plugins, overrides)
+    info, params = replay_params(source, plugins, overrides)
     info.factory(**params).close()  # a problem refusing its parameters says so before work
     draw = EvaluationSeeds(seed)
-    x = np.asarray(best.x)
     futures = [
-        executor.submit(EvaluationTask(i, x, draw(i), info.factory, params)) for i in range(seeds)
+        executor.submit(EvaluationTask(i, source.x, draw(i), info.factory, params))
+        for i in range(seeds)
     ]
     try:
         outcomes = [future.result() for future in futures]
     finally:
         release_problems()
-    return SeedReplay(run, best, params, outcomes)
+    return SeedReplay(source, params, outcomes)

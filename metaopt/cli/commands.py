@@ -11,7 +11,7 @@ import click
 from rich.markup import escape
 
 from metaopt.assessment.candidates import find_start
-from metaopt.assessment.replay import replay_candidate, replay_seeds
+from metaopt.assessment.replay import find_source, replay_candidate, replay_seeds
 from metaopt.cli.common import (
     MAX_INT64,
     build_executor,
@@ -391,7 +391,7 @@ def export_command(run_id: str, fmt: str, output: str | None, db_path: str) -> N
 
 
 @main.command("replay")
-@click.argument("target", metavar="RUN[:CANDIDATE]")
+@click.argument("target", metavar="RUN[:CANDIDATE]|NAME")
 @click.option("--backend", default=None, help="Physics engine to replay on [the run's own].")
 @click.option("--set", "settings", multiple=True, metavar="NAME=VALUE",
               help="Change a problem parameter for the replay.")  # fmt: skip
@@ -408,35 +408,32 @@ def replay_command(
     seeds: int | None, seed: int, executor: str | None, workers: int | None,
     scheduler: str | None, db_path: str,
 ) -> None:  # fmt: skip
-    """Re-run a stored run's best candidate (RUN) or another one (RUN:CANDIDATE, as `metaopt
-    robustness --top` names them) and compare with what was stored (with --seeds: a statistic
-    over fresh seeds, for noisy problems)."""
+    """Re-run a stored run's best candidate (RUN), another one (RUN:CANDIDATE, as `metaopt
+    robustness --top` names them) or a problem's stored candidate (NAME, e.g. a nao-walk gait),
+    and compare with what was stored (with --seeds: a statistic over fresh seeds, for noisy
+    problems)."""
     if video is not None:
         check_output_file(video, "--video", suffix=".mp4")
-    require_store(db_path)
     plugins = registry()
-    with RunStore(db_path) as store:
-        run_record = store.run(target.partition(":")[0])
-        problem_info = plugins.problem(run_record.problem)
-        pairs = [*settings, *([f"backend={backend}"] if backend is not None else [])]
-        overrides = parse_problem_settings(pairs, problem_info)
-        if seeds is not None:
-            with build_executor(executor, workers, scheduler) as pool:
-                over_seeds = replay_seeds(store, target, plugins, overrides, seeds, seed, pool)
-        else:
-            result = replay_candidate(store, target, plugins, overrides)
+    source = find_source(target, plugins, db_path)
+    problem_info = plugins.problem(source.problem)
+    pairs = [*settings, *([f"backend={backend}"] if backend is not None else [])]
+    overrides = parse_problem_settings(pairs, problem_info)
     if seeds is not None:
+        with build_executor(executor, workers, scheduler) as pool:
+            over_seeds = replay_seeds(source, plugins, overrides, seeds, seed, pool)
         console.print(display.replay_seeds_table(over_seeds))
         if all(o.fitness is None for o in over_seeds.outcomes):
             errors.print(f"Every replay failed: {over_seeds.outcomes[0].error}")
             sys.exit(1)
     else:
+        result = replay_candidate(source, plugins, overrides)
         console.print(display.replay_table(result))
         if result.replayed.fitness is None:
             errors.print(f"The replay failed: {result.replayed.error}")
             sys.exit(1)
     if video is not None:
-        write_replay_video(db_path, target, overrides, video)
+        write_replay_video(source, overrides, video)
 
 
 main.add_command(new)

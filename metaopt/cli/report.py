@@ -10,6 +10,7 @@ from typing import Any
 
 import click
 
+from metaopt.assessment.replay import ReplaySource
 from metaopt.cli.common import db_option, require_store
 from metaopt.cli.output import check_output_folder
 from metaopt.errors import ConfigError
@@ -106,12 +107,11 @@ def _report_experiment(
             click.echo(f"Note ({found.setting or 'all runs'}): {found.figures.note}.", err=True)
 
 
-def write_replay_video(db_path: str, target: str, overrides: dict[str, Any], path: str) -> None:
-    """``metaopt replay RUN[:NUMBER] --video PATH``: film the replayed candidate into PATH."""
+def write_replay_video(source: ReplaySource, overrides: dict[str, Any], path: str) -> None:
+    """``metaopt replay TARGET --video PATH``: film the replayed candidate into PATH."""
     from metaopt.reporting.video import VIDEO_FPS, VIDEO_SIZE, film_candidate
 
-    with RunStore(db_path) as store:
-        frames = film_candidate(store, target, registry(), overrides, Path(path))
+    frames = film_candidate(source, registry(), overrides, Path(path))
     width, height = VIDEO_SIZE
     click.echo(
         f"wrote {path}: {frames} frames, {width}x{height}, {VIDEO_FPS} fps "

@@ -6,7 +6,7 @@ from __future__ import annotations
 from collections.abc import Sequence
 from dataclasses import dataclass
 
-from metaopt.assessment.replay import Replay, replay_candidate
+from metaopt.assessment.replay import Replay, replay_candidate, run_source
 from metaopt.comparison.experiment import Experiment
 from metaopt.comparison.summary import (
     CellRuns,
@@ -52,7 +52,8 @@ def replay_on_other_engines(
         for engine, backend in plugins.physics_backends.items():
             if engine not in engine_names(found_on) and not backend.unavailable:
                 replays = [
-                    replay_candidate(store, r.run.id, plugins, {"backend": engine}) for r in runs
+                    replay_candidate(run_source(store, r.run.id), plugins, {"backend": engine})
+                    for r in runs
                 ]
                 transfers.append(Transfer(cell, found_on, engine, replays))
     return transfers
@@ -66,13 +67,13 @@ def transfer_table(
     number of replays that failed."""
     replays = [replay for t in transfers for replay in t.replays]
     key_metrics = problem_traits(experiment, plugins).key_metrics
-    metrics = [m for m in shown_metrics(key_metrics, (r.stored.metrics for r in replays))
+    metrics = [m for m in shown_metrics(key_metrics, (r.source.metrics for r in replays))
                if "@" not in m]  # fmt: skip
     flags = {
         name: is_flag(
             metrics[name]
             for replay in replays
-            for metrics in (replay.stored.metrics, replay.replayed.metrics)
+            for metrics in (replay.source.metrics, replay.replayed.metrics)
             if name in metrics
         )
         for name in metrics
@@ -105,13 +106,13 @@ def _row(transfer: Transfer, metrics: list[str], flags: dict[str, bool]) -> Row:
         "found_on": transfer.found_on,
         "replayed_on": transfer.replayed_on,
         "runs": len(transfer.replays),
-        "fitness_found": center([r.stored.fitness for r in transfer.replays], False),
+        "fitness_found": center([r.source.fitness for r in transfer.replays], False),
         "fitness_replayed": center([r.replayed.fitness for r in done], False),
-        "fitness_gap": center([r.stored.fitness - r.replayed.fitness for r in done], False),
+        "fitness_gap": center([r.source.fitness - r.replayed.fitness for r in done], False),
         "failed": len(transfer.replays) - len(done),
     }
     for name in metrics:
-        found = [r.stored.metrics[name] for r in transfer.replays if name in r.stored.metrics]
+        found = [r.source.metrics[name] for r in transfer.replays if name in r.source.metrics]
         replayed = [r.replayed.metrics[name] for r in done if name in r.replayed.metrics]
         row[f"{name}_found"] = center(found, flags[name])
         row[f"{name}_replayed"] = center(replayed, flags[name])

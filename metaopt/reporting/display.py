@@ -22,7 +22,7 @@ from rich.progress import (
 )
 from rich.table import Table
 
-from metaopt.assessment.replay import Replay, SeedReplay
+from metaopt.assessment.replay import Replay, ReplaySource, SeedReplay
 from metaopt.params import Param
 from metaopt.run_loop import RunResult
 from metaopt.storage.run_store import CandidateRecord, RunRecord
@@ -141,35 +141,38 @@ def _shown_metrics(metrics: dict[str, float], key_metrics: Sequence[str]) -> lis
     return keys + [k for k in metrics if k not in keys]
 
 
+def _replay_setting(source: ReplaySource, params: dict[str, Any]) -> str:
+    """The problem parameters a replay changed, 'k=v, ...', or 'as stored'."""
+    changed = {k: v for k, v in params.items() if source.problem_params.get(k) != v}
+    return ", ".join(f"{k}={v}" for k, v in changed.items()) or "as stored"
+
+
+def _stored_scores(source: ReplaySource) -> dict[str, float | None] | None:
+    """What the replayed candidate scored when stored, fitness first; None for a candidate
+    kept without a score (a problem's stored candidate): its tables have no 'stored' column."""
+    if source.fitness is None and not source.metrics:
+        return None
+    return {"fitness": source.fitness, **(source.metrics or {})}
+
+
 def replay_table(replay: Replay) -> Table:
-    """`metaopt replay`: stored best metrics beside the replayed ones."""
-    changed = {
-        k: v for k, v in replay.problem_params.items() if replay.run.problem_params.get(k) != v
-    }
-    setting = ", ".join(f"{k}={v}" for k, v in changed.items()) or "as stored"
+    """`metaopt replay`: the stored metrics beside the replayed ones."""
+    source = replay.source
     table = Table(
-        title=f"run {replay.run.id}, {replay.stored.describe()} replayed ({setting})",
+        title=f"{source.label} replayed ({_replay_setting(source, replay.problem_params)})",
         title_justify="left",
     )
-    table.add_column("")
-    table.add_column("stored", justify="right")
-    table.add_column("replayed", justify="right")
+    stored = _stored_scores(source)
+    for column in ("", *(["stored"] if stored is not None else []), "replayed"):
+        table.add_column(column, justify="right" if column else "left")
     replayed = replay.replayed
     failed = replayed.fitness is None
-    table.add_row(
-        "fitness",
-        format_number(replay.stored.fitness),
-        "failed" if failed else format_number(replayed.fitness),
-    )
-    names = list(replay.stored.metrics) + [
-        k for k in replayed.metrics if k not in replay.stored.metrics
-    ]
-    for name in names:
-        table.add_row(
-            name,
-            format_number(replay.stored.metrics.get(name)),
-            "-" if failed else format_number(replayed.metrics.get(name)),
-        )
+    names = [*(stored or {"fitness": None}), *replayed.metrics]
+    for name in dict.fromkeys(names):
+        value = replayed.fitness if name == "fitness" else replayed.metrics.get(name)
+        shown = ("failed" if name == "fitness" else "-") if failed else format_number(value)
+        before = [] if stored is None else [format_number(stored.get(name))]
+        table.add_row(name, *before, shown)
     return table
 
 
@@ -375,32 +378,30 @@ def robustness_ranking(ranked: Sequence, version: str, metrics: Sequence[str]) -
 
 
 def replay_seeds_table(replay: SeedReplay) -> Table:
-    """`metaopt replay --seeds N`: the stored best beside the median and interquartile range
-    (for 'fell': the rate) of its re-evaluations over N seeds."""
+    """`metaopt replay --seeds N`: the stored candidate beside the median and interquartile
+    range (for 'fell': the rate) of its re-evaluations over N seeds."""
     from metaopt.assessment.robustness import summarize
 
+    source = replay.source
     done = [o for o in replay.outcomes if o.fitness is not None]
     failed = len(replay.outcomes) - len(done)
-    changed = {
-        k: v for k, v in replay.problem_params.items() if replay.run.problem_params.get(k) != v
-    }
-    setting = ", ".join(f"{k}={v}" for k, v in changed.items()) or "as stored"
     title = (
-        f"run {replay.run.id}, {replay.stored.describe()} over {len(replay.outcomes)} "
-        f"seeds ({setting})" + (f", {failed} failed" if failed else "")
+        f"{source.label} over {len(replay.outcomes)} seeds "
+        f"({_replay_setting(source, replay.problem_params)})"
+        + (f", {failed} failed" if failed else "")
     )
     table = Table(title=title, title_justify="left")
-    for column in ("", "stored", "median", "IQR"):
+    stored = _stored_scores(source)
+    for column in ("", *(["stored"] if stored is not None else []), "median", "IQR"):
         table.add_column(column, justify="left" if not column else "right")
     samples = [{"fitness": o.fitness, **o.metrics} for o in done]
-    names = ["fitness", *replay.stored.metrics]
-    names += [k for o in done for k in o.metrics if k not in names]
-    stored = {"fitness": replay.stored.fitness, **replay.stored.metrics}
+    names = [*(stored or {"fitness": None}), *(k for o in done for k in o.metrics)]
     for name in dict.fromkeys(names):
         median, low, high = summarize(samples, name)
         if name.startswith("fell"):
             row = [f"{median:.0%} fell", ""]
         else:
             row = [format_number(median), f"{format_number(low)} to {format_number(high)}"]
-        table.add_row(name, format_number(stored.get(name)), *row)
+        before = [] if stored is None else [format_number(stored.get(name))]
+        table.add_row(name, *before, *row)
     return table

@@ -14,10 +14,9 @@ from typing import Any
 import imageio_ffmpeg
 import numpy as np
 
-from metaopt.assessment.replay import replay_params, stored_candidate
+from metaopt.assessment.replay import ReplaySource, replay_params
 from metaopt.errors import ConfigError, MetaoptError
 from metaopt.plugins import Registry
-from metaopt.storage.run_store import RunStore
 
 #: Video size (width, height), pixels, and frames per second of simulated time.
 VIDEO_SIZE = (480, 360)
@@ -54,28 +53,25 @@ class Mp4Writer:
 
 
 def film_candidate(
-    store: RunStore,
-    target: int | str,
+    source: ReplaySource,
     plugins: Registry,
     overrides: dict[str, Any],
     path: Path,
     size: tuple[int, int] = VIDEO_SIZE,
     fps: int = VIDEO_FPS,
 ) -> int:
-    """Film ``target``'s candidate (a run's best, or ``RUN:NUMBER``) with its seed, problem
-    parameters as stored but for ``overrides``, into path; returns the number of frames (an
-    error keeps those so far)."""
-    run, best = stored_candidate(store, target)
-    info, params = replay_params(run, plugins, overrides)
+    """Film ``source``'s candidate with its (first) seed, problem parameters as stored but for
+    ``overrides``, into path; returns the number of frames (an error keeps those so far)."""
+    info, params = replay_params(source, plugins, overrides)
     problem = info.factory(**params)
     writer = Mp4Writer(path, size, fps)
     try:
-        problem.video(best.x, best.seed, writer, size, fps)
+        problem.video(source.x, source.seed, writer, size, fps)
     except NotImplementedError as missing:
-        raise ConfigError(f"problem {run.problem!r}: {missing}") from None
+        raise ConfigError(f"problem {source.problem!r}: {missing}") from None
     finally:
         writer.close()
         problem.close()
     if writer.frames == 0:
-        raise MetaoptError(f"{target}'s candidate gave no frame to film")
+        raise MetaoptError(f"{source.label} gave no frame to film")
     return writer.frames
