@@ -15,7 +15,9 @@ from metaopt.assessment.candidates import Candidate, find_candidate, find_candid
 from metaopt.assessment.robustness import (
     CellResult,
     Perturbation,
+    PerturbationTable,
     differing_params,
+    parse_goal,
     rank,
     select_cells,
     tasks,
@@ -120,9 +122,13 @@ def _rows(path: Path) -> list[dict[str, str]]:
 @pytest.mark.slow
 def test_robustness_command_end_to_end_and_deterministic(tmp_path: Path) -> None:
     serial = metaopt_cli("robustness", *TINY, "--csv", "serial.csv", "--figure", "r.png",
-                         cwd=tmp_path)  # fmt: skip
+                         "--goal", "speed>=5", "--goal", "fell<=1", cwd=tmp_path)  # fmt: skip
     assert serial.returncode == 0, serial.stderr
     assert "nao-walk-1" in serial.stdout and "latency 1" in serial.stdout
+    # the verdict against the goals: no walk reaches 5 m/s, every one falls at most always
+    assert "hs_walk against the goals speed>=5, fell<=1:" in serial.stdout
+    for engine in ("mujoco", "pybullet"):
+        assert f"  {engine}: misses speed>=5 (0." in serial.stdout
     assert (tmp_path / "r.png").stat().st_size > 1000
     rows = _rows(tmp_path / "serial.csv")
     assert [(r["cell"], r["engine"]) for r in rows] == [
@@ -149,6 +155,7 @@ def test_robustness_command_refuses_bad_input_in_one_line(tmp_path: Path) -> Non
         (("hs_walk", "--engines", "bullet"), "bullet"),
         (("hs_walk", "--cells", "gravity"), "no perturbation 'gravity'"),
         (("hs_walk", "--set", "friction=5", "--engines", "mujoco"), "friction"),
+        (("hs_walk", "--goal", "speed>0.44"), "goal 'speed>0.44': write METRIC>=VALUE"),
     ):
         result = metaopt_cli("robustness", *args, "--csv", "out.csv", cwd=tmp_path)
         assert result.returncode == 2, (args, result.stderr)
@@ -208,6 +215,52 @@ def test_candidates_rank_by_their_worst_engines_mean_fitness() -> None:
     assert [(r.candidate.label, r.score) for r in minimized[:3]] == [
         ("both", 2.0), ("tie", 3.0), ("one-engine", 9.0)
     ]  # fmt: skip
+
+
+def test_goals_rank_by_the_smallest_margin_then_by_fitness() -> None:
+    """With goals a candidate is scored by its smallest relative margin to any goal on any
+    engine over the whole table (speed beyond the goal buys nothing, one engine's falls sink
+    it); equal margins fall back to the fitness order; a failed evaluation is outside every
+    goal."""
+
+    def c(label: str, speeds: dict[str, list[float]], fell: dict[str, list[float]], fit: float,
+          failed: int = 0) -> tuple[Candidate, list[CellResult]]:  # fmt: skip
+        rows = [
+            CellResult("nominal", engine, [{"speed": v, "fell": f} for v, f in
+                                           zip(speeds[engine], fell[engine], strict=True)],
+                       failed if engine == "e2" else 0, [fit] * len(speeds[engine]))
+            for engine in speeds
+        ]  # fmt: skip
+        return Candidate(label, "p", {}, np.zeros(1)), rows
+
+    table = PerturbationTable("t-1", (), ("speed", "fell"))
+    goals = [parse_goal("speed>=0.5", table), parse_goal(" fell <= 0.25", table)]
+    assert [str(g) for g in goals] == ["speed>=0.5", "fell<=0.25"]
+    fast_but_falls = c(
+        "fast",
+        {"e1": [0.9] * 4, "e2": [0.9] * 4},
+        {"e1": [0, 0, 0, 0], "e2": [1, 1, 0, 0]},
+        fit=9.0,
+    )  # fell 0.5: -1.0
+    steady = c(
+        "steady", {"e1": [0.6] * 4, "e2": [0.55] * 4}, {"e1": [0] * 4, "e2": [0] * 4}, fit=2.0
+    )  # speed 0.55 on e2: +0.1
+    steady_fitter = c(
+        "steady, fitter",
+        {"e1": [0.6] * 4, "e2": [0.55] * 4},
+        {"e1": [0] * 4, "e2": [0] * 4},
+        fit=3.0,
+    )  # +0.1 as well
+    failed = c("failed", {"e1": [0.9] * 4, "e2": [0.9] * 4},
+               {"e1": [0] * 4, "e2": [0] * 4}, fit=9.0, failed=1)  # fmt: skip
+    ranked = rank([fast_but_falls, steady, steady_fitter, failed], True, goals)
+    assert [r.candidate.label for r in ranked] == ["steady, fitter", "steady", "fast", "failed"]
+    assert [r.margin for r in ranked[:3]] == pytest.approx([0.1, 0.1, -1.0])
+    assert ranked[3].margin == -np.inf
+    assert [r.candidate.label for r in rank([fast_but_falls, steady], True)] == ["fast", "steady"]
+    for bad in ("speed=0.5", "speed>=fast", "height>=1", "fell<=inf", ""):
+        with pytest.raises(ConfigError, match=r"METRIC>=VALUE or METRIC<=VALUE .*speed, fell"):
+            parse_goal(bad, table)
 
 
 def test_a_ranking_names_the_parameters_its_candidates_differ_in() -> None:

@@ -186,30 +186,80 @@ def differing_params(
     ]  # fmt: skip
 
 
+@dataclass(frozen=True)
+class Goal:
+    """A bound on one of a table's metrics over an engine's whole table: its median (for a
+    rate, its value) at least or at most a threshold; written ``speed>=0.44``, ``fell<=0.05``."""
+
+    metric: str
+    at_least: bool
+    threshold: float
+
+    def __str__(self) -> str:
+        return f"{self.metric}{'>=' if self.at_least else '<='}{self.threshold:g}"
+
+    def margin(self, row: CellResult) -> float:
+        """How far inside the bound the row is, relative to the threshold (absolute for a
+        threshold of 0): negative outside it, -inf where an evaluation failed."""
+        value = row.summary(self.metric)[0]
+        if row.failed or math.isnan(value):
+            return -math.inf
+        slack = value - self.threshold if self.at_least else self.threshold - value
+        return slack / abs(self.threshold) if self.threshold else slack
+
+
+def parse_goal(text: str, table: PerturbationTable) -> Goal:
+    """``METRIC>=VALUE`` or ``METRIC<=VALUE``, METRIC one of the table's; ConfigError
+    naming what is accepted otherwise."""
+    for operator in (">=", "<="):
+        metric, found, value = text.partition(operator)
+        if found and metric.strip() in table.metrics:
+            try:
+                threshold = float(value)
+            except ValueError:
+                break
+            if math.isfinite(threshold):
+                return Goal(metric.strip(), operator == ">=", threshold)
+    raise ConfigError(
+        f"goal {text!r}: write METRIC>=VALUE or METRIC<=VALUE with a finite VALUE and a "
+        f"metric of table {table.version} ({', '.join(table.metrics)})"
+    )
+
+
 @dataclass
 class Ranked:
     """A candidate's table and its score: the worst engine's mean fitness over the whole
-    table (a failed evaluation counts as the worst)."""
+    table (a failed evaluation counts as the worst); with goals, ``margin``: its smallest
+    margin to any goal on any engine (Goal.margin)."""
 
     candidate: Candidate
     results: list[CellResult]
     score: float
+    margin: float | None = None
 
 
-def rank(tables: Sequence[tuple[Candidate, list[CellResult]]], maximize: bool) -> list[Ranked]:
+def rank(
+    tables: Sequence[tuple[Candidate, list[CellResult]]],
+    maximize: bool,
+    goals: Sequence[Goal] = (),
+) -> list[Ranked]:
     """Candidates best first by their worst engine's mean fitness over the whole table: the
     mean counts every fall at its fitness's price, the worst engine asks for one candidate
-    that holds on all. Ties keep the given order."""
+    that holds on all. With goals, by the smallest margin to a goal on any engine first (the
+    candidate that meets every goal with the most room; fitness beyond a goal buys nothing),
+    then by fitness. Ties keep the given order."""
     sign = 1.0 if maximize else -1.0
     ranked = []
     for candidate, results in tables:
+        rows = whole_table(results)
         means = [
             sign * statistics.fmean(row.fitnesses) if row.fitnesses and not row.failed
             else -math.inf
-            for row in whole_table(results)
+            for row in rows
         ]  # fmt: skip
-        ranked.append(Ranked(candidate, results, sign * min(means)))
-    return sorted(ranked, key=lambda r: -sign * r.score)
+        margin = min(goal.margin(row) for goal in goals for row in rows) if goals else None
+        ranked.append(Ranked(candidate, results, sign * min(means), margin))
+    return sorted(ranked, key=lambda r: (-(r.margin or 0.0), -sign * r.score))
 
 
 CSV_COLUMNS = ("table_version", "candidate", "cell", "engine", "seeds", "failed")

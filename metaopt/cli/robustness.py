@@ -76,18 +76,27 @@ from metaopt.settings import parse_problem_settings
     default=None,
     help="Draw speed and fall rate per perturbation (PNG) here, of the best-ranked candidate.",
 )
+@click.option(
+    "--goal",
+    "goal_texts",
+    multiple=True,
+    metavar="METRIC>=VALUE",
+    help="A bound on a metric's median (a rate's value) over each engine's whole table, e.g. "
+    "'speed>=0.44' 'fell<=0.05': rank by the smallest margin to a goal, then by fitness.",
+)
 @scheduling_options
 @db_option
 def robustness_command(
     targets: tuple[str, ...], top: int, engines: str | None, seeds: int, seed: int,
     cells: str | None, settings: tuple[str, ...], csv_path: Path | None,
-    figure_path: Path | None, executor: str | None, workers: int | None, scheduler: str | None,
-    db_path: str,
+    figure_path: Path | None, goal_texts: tuple[str, ...], executor: str | None,
+    workers: int | None, scheduler: str | None, db_path: str,
 ) -> None:  # fmt: skip
     """Evaluate candidates over their problem's standard perturbation table, on every engine,
     over N seeds per cell: a run's best (or its --top K best), one of its candidates
     (RUN:CANDIDATE) or a stored one (e.g. a nao-walk gait). Several are ranked by their worst
-    engine's mean fitness over the table; the best is shown cell by cell."""
+    engine's mean fitness over the table (with --goal: by their margin to the goals first);
+    the best is shown cell by cell, and with --goal which goals it meets."""
     if csv_path is not None:
         check_output_file(str(csv_path), "--csv", suffix=".csv")
     if figure_path is not None:
@@ -104,6 +113,7 @@ def robustness_command(
     table = robustness.select_cells(
         info.perturbations, [c.strip() for c in cells.split(",")] if cells is not None else None
     )
+    goals = [robustness.parse_goal(text, table) for text in goal_texts]
     plans = [  # bad parameters: before any work
         robustness.tasks(candidate, info, table, names, seeds, seed) for candidate in candidates
     ]
@@ -122,10 +132,10 @@ def robustness_command(
     with build_executor(executor, workers, scheduler) as pool:
         results = robustness.evaluate(plans, pool)
     ranked = robustness.rank(
-        list(zip(candidates, results, strict=True)), _maximizes(info, candidates[0])
+        list(zip(candidates, results, strict=True)), _maximizes(info, candidates[0]), goals
     )
     if len(ranked) > 1:
-        console.print(display.robustness_ranking(ranked, table.version, table.metrics))
+        console.print(display.robustness_ranking(ranked, table.version, table.metrics, goals))
     best = ranked[0]
     totals = robustness.whole_table(best.results)
     console.print(
@@ -133,6 +143,8 @@ def robustness_command(
             best.candidate.label, table.version, best.results, table.metrics, totals
         )
     )
+    if goals:
+        console.print(display.goal_verdict(best.candidate.label, totals, goals))
     if csv_path is not None:
         robustness.write_csv(
             csv_path, table,

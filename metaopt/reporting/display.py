@@ -349,16 +349,21 @@ def robustness_table(
     return table
 
 
-def robustness_ranking(ranked: Sequence, version: str, metrics: Sequence[str]) -> Table:
+def robustness_ranking(
+    ranked: Sequence, version: str, metrics: Sequence[str], goals: Sequence = ()
+) -> Table:
     """`metaopt robustness` with several candidates: best first, each with its score (the
-    worst engine's mean fitness over the table) and, per engine over the whole table, the
-    mean fitness, the first metric's median and the rates."""
+    worst engine's mean fitness over the table; with goals, first its smallest margin to a
+    goal) and, per engine over the whole table, the mean fitness, the first metric's median
+    and the rates."""
     from metaopt.assessment.robustness import whole_table
 
     rates = [m for m in metrics if m.startswith("fell")]
-    table = Table(title=f"candidates ranked over perturbation table {version}",
+    by = f" by the goals {', '.join(map(str, goals))}" if goals else ""
+    table = Table(title=f"candidates ranked over perturbation table {version}{by}",
                   title_justify="left")  # fmt: skip
-    for name in ("rank", "candidate", "score", "engine", "fitness (mean)",
+    margin = ["goal margin"] if goals else []
+    for name in ("rank", "candidate", *margin, "score", "engine", "fitness (mean)",
                  f"{metrics[0]} (median)", *rates):  # fmt: skip
         table.add_column(name, justify="left" if name in ("candidate", "engine") else "right")
     for number, entry in enumerate(ranked, start=1):
@@ -366,15 +371,31 @@ def robustness_ranking(ranked: Sequence, version: str, metrics: Sequence[str]) -
             table.add_section()
         for row, total in enumerate(whole_table(entry.results)):
             mean = statistics.fmean(total.fitnesses) if total.fitnesses else math.nan
+            shown_margin = [f"{entry.margin:+.3f}"] if goals else []
             first = (
-                (str(number), entry.candidate.label, f"{entry.score:.3f}")
+                (str(number), entry.candidate.label, *shown_margin, f"{entry.score:.3f}")
                 if row == 0
-                else ("", "", "")
+                else ("",) * (3 + len(margin))
             )
             speed = total.summary(metrics[0])[0]
             table.add_row(*first, total.engine, f"{mean:.3f}", f"{speed:.3f}",
                           *(f"{total.summary(m)[0]:.0%}" for m in rates))  # fmt: skip
     return table
+
+
+def goal_verdict(label: str, totals: Sequence, goals: Sequence) -> str:
+    """Which goals a candidate meets over each engine's whole table, one line per engine:
+    'mujoco: meets all', 'pybullet: misses fell<=0.05 (0.073)'."""
+    lines = [f"{label} against the goals {', '.join(map(str, goals))}:"]
+    for total in totals:
+        missed = [
+            f"{goal} ({total.summary(goal.metric)[0]:.3g})"
+            for goal in goals
+            if goal.margin(total) < 0
+        ]
+        lines.append(f"  {total.engine}: " + (f"misses {', '.join(missed)}" if missed else
+                                               "meets all"))  # fmt: skip
+    return "\n".join(lines)
 
 
 def replay_seeds_table(replay: SeedReplay) -> Table:
