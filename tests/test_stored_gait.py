@@ -160,46 +160,30 @@ def test_the_transfer_walk_claims_the_same_pace_on_every_engine_without_a_fall()
         assert claim["min_median_distance"] >= DISTANCE_MARGIN * 0.3 * 12  # 0.33-0.36 m/s
 
 
-def test_the_capped_walk_claims_the_goals_pace_on_mujoco_and_pybullet_without_a_fall() -> None:
-    """The ninth search's gait (docs/robustness.md; each engine's progress capped before the
-    mean): no fall and flight within the goal's 5 % on every engine, and on MuJoCo and PyBullet
-    a median distance at the goal's 0.44 m/s (less the claims' margin); on ODE it walks slower
-    (0.40 m/s over the standard table)."""
-    gait = load_gait("capped_walk")
-    assert gait["problem_params"]["engine_cap"] == 6.0
-    assert gait["problem_params"]["backend"] == "mujoco+pybullet+ode"
-    assert set(gait["claims"]) == set(ENGINES)
-    for engine, claim in gait["claims"].items():
-        assert claim["max_fall_rate"] == 0 and claim["max_median_flight"] <= 0.05
-        pace = 0.44 if engine != "ode" else 0.35
-        assert claim["min_median_distance"] >= DISTANCE_MARGIN * pace * 12, engine
+#: The part-4 searches' gaits (docs/robustness.md), each searched on all three engines with
+#: each engine's progress capped at 6 m before the mean: what its record claims at noise 0.1 on
+#: every engine: no fall, flight within the goal's 5 %, |drift| within a bound where claimed,
+#: and a median distance at a pace (less the claims' margin). capped_walk (the ninth search)
+#: walks slower on ODE (0.40 m/s over the standard table); pooled_walk (the eleventh) falls 7 %
+#: of the time on PyBullet over the whole table, which is not claimed here; goal_walk (the
+#: twelfth, within the goal over the table) is slowest on ODE in the nominal world (0.43 m/s;
+#: 0.444 over the whole table).
+SEARCHED_GAITS = {
+    "capped_walk": ({"mujoco": 0.44, "pybullet": 0.44, "ode": 0.35}, None),
+    "pooled_walk": ({"mujoco": 0.44, "pybullet": 0.44, "ode": 0.44}, 0.3),
+    "goal_walk": ({"mujoco": 0.44, "pybullet": 0.44, "ode": 0.42}, 0.3),
+}
 
 
-def test_the_pooled_walk_claims_the_goals_pace_on_every_engine_without_a_fall() -> None:
-    """The eleventh search's gait (docs/robustness.md; three pipelines pooled, raced over the
-    table): at noise 0.1 on every engine no fall, flight within the goal's 5 %, |drift| within
-    its 0.3 m and a median distance at the goal's 0.44 m/s (less the claims' margin). Over the
-    whole standard table it falls 7 % of the time on PyBullet: the table is not claimed here."""
-    gait = load_gait("pooled_walk")
+@pytest.mark.parametrize("name", sorted(SEARCHED_GAITS))
+def test_the_searched_gaits_claim_their_pace_on_every_engine_without_a_fall(name: str) -> None:
+    pace, max_drift = SEARCHED_GAITS[name]
+    gait = load_gait(name)
     assert gait["problem_params"]["engine_cap"] == 6.0
     assert gait["problem_params"]["backend"] == "mujoco+pybullet+ode"
     assert set(gait["claims"]) == set(ENGINES)
     for engine, claim in gait["claims"].items():
         assert claim["max_fall_rate"] == 0 and claim["max_median_flight"] <= 0.05, engine
-        assert claim["max_median_drift"] <= 0.3, engine
-        assert claim["min_median_distance"] >= DISTANCE_MARGIN * 0.44 * 12, engine
-
-
-def test_the_goal_walk_claims_a_walk_on_every_engine_without_a_fall() -> None:
-    """The eleventh search's other finalist (docs/robustness.md), within the goal over the
-    standard table on every engine: at noise 0.1 no fall, flight and |drift| within the goal,
-    the goal's 0.44 m/s on MuJoCo and PyBullet (less the claims' margin); on ODE the nominal
-    world is its slowest (0.43 m/s; 0.444 over the whole table)."""
-    gait = load_gait("goal_walk")
-    assert gait["problem_params"]["engine_cap"] == 6.0
-    assert set(gait["claims"]) == set(ENGINES)
-    for engine, claim in gait["claims"].items():
-        assert claim["max_fall_rate"] == 0 and claim["max_median_flight"] <= 0.05, engine
-        assert claim["max_median_drift"] <= 0.3, engine
-        pace = 0.44 if engine != "ode" else 0.42
-        assert claim["min_median_distance"] >= DISTANCE_MARGIN * pace * 12, engine
+        if max_drift is not None:
+            assert claim["max_median_drift"] <= max_drift, engine
+        assert claim["min_median_distance"] >= DISTANCE_MARGIN * pace[engine] * 12, engine

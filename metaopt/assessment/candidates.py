@@ -16,7 +16,7 @@ import numpy as np
 
 from metaopt.errors import ConfigError, StoreError
 from metaopt.params import resolve
-from metaopt.problem import ProblemInfo, StoredCandidate
+from metaopt.problem import ProblemInfo
 
 
 @dataclass(frozen=True)
@@ -47,9 +47,8 @@ def find_candidates(
     when top is 1, else ``run R candidate N``, N being what ``RUN:N`` names)."""
     named = stored_candidate_named(target, problems)
     if named is not None:
-        stored, info = named
-        params = resolve(info.params, stored.params, info.name)
-        return [Candidate(target, info.name, params, stored.x)], info
+        candidate, info, _ = named
+        return [candidate], info
     from metaopt.storage.run_store import RunStore
 
     check_run_target(target, problems, db_path)
@@ -72,12 +71,15 @@ def find_candidates(
 
 def stored_candidate_named(
     name: str, problems: Mapping[str, ProblemInfo]
-) -> tuple[StoredCandidate, ProblemInfo] | None:
-    """The candidate an installed problem keeps as data under ``name``, and that problem."""
+) -> tuple[Candidate, ProblemInfo, int] | None:
+    """The candidate an installed problem keeps as data under ``name`` (its parameters
+    resolved), that problem, and the evaluation seed it was recorded with; None if none
+    does."""
     for info in problems.values():
         stored = info.stored_candidates() if info.stored_candidates else {}
         if name in stored:
-            return stored[name], info
+            params = resolve(info.params, stored[name].params, info.name)
+            return Candidate(name, info.name, params, stored[name].x), info, stored[name].seed
     return None
 
 

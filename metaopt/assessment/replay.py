@@ -95,11 +95,11 @@ def find_source(target: str, plugins: Registry, db_path: str) -> ReplaySource:
     db_path; ConfigError naming what is accepted otherwise."""
     named = stored_candidate_named(target, plugins.problems)
     if named is not None:
-        stored, info = named
-        params = resolve(info.params, stored.params, info.name)
+        candidate, _, seed = named
         return ReplaySource(
-            f"stored candidate {target}", info.name, params, stored.x, [(0, stored.seed)]
-        )
+            f"stored candidate {target}", candidate.problem, candidate.params, candidate.x,
+            [(0, seed)],
+        )  # fmt: skip
     check_run_target(target, plugins.problems, db_path)
     with RunStore(db_path) as store:
         return run_source(store, target)
