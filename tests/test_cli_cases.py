@@ -380,6 +380,9 @@ def test_infinite_settings_export_as_strict_json_that_reads_back(tmp_path):
     assert done.returncode == 0, done.stderr
     exported = _strict_json(in_process("export", "1", "--format", "json", folder=tmp_path))
     shown = _strict_json(in_process("show", "1", "--format", "json", folder=tmp_path))
-    for params in (exported["run"]["problem_params"], shown["problem_params"]):
+    as_csv = in_process("show", "1", "--format", "csv", folder=tmp_path)
+    (row,) = csv.DictReader(io.StringIO(as_csv))
+    in_csv = _strict_json(row["problem_params"])
+    for params in (exported["run"]["problem_params"], shown["problem_params"], in_csv):
         assert params["friction"] == "inf" and float(params["friction"]) == float("inf")
     assert len(exported["evaluations"]) == 2

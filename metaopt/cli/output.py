@@ -16,7 +16,7 @@ from typing import Any, TextIO
 import click
 
 from metaopt.errors import ConfigError
-from metaopt.storage.export import dump_json
+from metaopt.storage.export import dump_json, finite_json
 
 OUTPUT_FORMATS = ("table", "csv", "json")
 format_option = click.option(
@@ -86,7 +86,7 @@ def written_whole(path: Path) -> Iterator[TextIO]:
 
 def print_records(records: list[dict[str, Any]] | dict[str, Any], fmt: str) -> None:
     """Records (or one record) on stdout as JSON, or as CSV: one column per key, nested
-    values as JSON."""
+    values as strict JSON (see finite_json)."""
     if fmt == "json":
         dump_json(records, sys.stdout)
         return
@@ -96,6 +96,11 @@ def print_records(records: list[dict[str, Any]] | dict[str, Any], fmt: str) -> N
     writer = csv.DictWriter(sys.stdout, fieldnames=fields, lineterminator="\n")
     writer.writeheader()
     for record in records:
-        writer.writerow(
-            {k: json.dumps(v) if isinstance(v, dict | list) else v for k, v in record.items()}
-        )
+        writer.writerow({key: _csv_cell(value) for key, value in record.items()})
+
+
+def _csv_cell(value: Any) -> Any:
+    """A nested value as strict JSON (see finite_json); anything else as csv writes it."""
+    if isinstance(value, dict | list):
+        return json.dumps(finite_json(value), allow_nan=False)
+    return value
