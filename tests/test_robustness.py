@@ -22,6 +22,7 @@ from metaopt.assessment.robustness import (
     select_cells,
     tasks,
     whole_table,
+    write_ranking,
 )
 from metaopt.plugins import registry
 from metaopt.storage.run_store import RunStore
@@ -110,6 +111,7 @@ def test_find_candidate_takes_stored_gaits_by_name() -> None:
     candidate, info = find_candidate("stride_mujoco", registry().problems, "none.db")
     assert info.name == "nao-walk" and candidate.params["controller"] == "stride"
     assert np.array_equal(candidate.x, gait_vector(load_gait("stride_mujoco")))
+    assert candidate.target == "stride_mujoco"  # what names it again on a command line
     with pytest.raises(ConfigError, match="neither a stored candidate"):
         find_candidate("no_such_gait", registry().problems, "none.db")
 
@@ -217,11 +219,11 @@ def test_candidates_rank_by_their_worst_engines_mean_fitness() -> None:
     ]  # fmt: skip
 
 
-def test_goals_rank_by_the_smallest_margin_then_by_fitness() -> None:
+def test_goals_rank_by_the_smallest_margin_then_by_fitness(tmp_path: Path) -> None:
     """With goals a candidate is scored by its smallest relative margin to any goal on any
     engine over the whole table (speed beyond the goal buys nothing, one engine's falls sink
     it); equal margins fall back to the fitness order; a failed evaluation is outside every
-    goal."""
+    goal. The ranking's CSV keeps that order and says which meet every goal."""
 
     def c(label: str, speeds: dict[str, list[float]], fell: dict[str, list[float]], fit: float,
           failed: int = 0) -> tuple[Candidate, list[CellResult]]:  # fmt: skip
@@ -258,6 +260,11 @@ def test_goals_rank_by_the_smallest_margin_then_by_fitness() -> None:
     assert [r.margin for r in ranked[:3]] == pytest.approx([0.1, 0.1, -1.0])
     assert ranked[3].margin == -np.inf
     assert [r.candidate.label for r in rank([fast_but_falls, steady], True)] == ["fast", "steady"]
+    write_ranking(tmp_path / "ranking.csv", ranked)
+    assert [(r["rank"], r["candidate"], r["meets_goals"]) for r in
+            _rows(tmp_path / "ranking.csv")] == [
+        ("1", "steady, fitter", "True"), ("2", "steady", "True"), ("3", "fast", "False"),
+        ("4", "failed", "False")]  # fmt: skip
     for bad in ("speed=0.5", "speed>=fast", "height>=1", "fell<=inf", ""):
         with pytest.raises(ConfigError, match=r"METRIC>=VALUE or METRIC<=VALUE .*speed, fell"):
             parse_goal(bad, table)
@@ -311,7 +318,7 @@ def test_robustness_top_ranks_a_runs_best_candidates_and_each_can_be_named(
     cells = ("--engines", "mujoco", "--seeds", "2", "--cells", "nominal,latency 1",
              "--db", "runs.db")  # fmt: skip
     top = metaopt_cli("robustness", "1", "--top", "3", *cells, "--csv", "top.csv",
-                      cwd=short_run)  # fmt: skip
+                      "--ranking", "ranking.csv", cwd=short_run)  # fmt: skip
     assert top.returncode == 0, top.stderr
     assert "x 3 candidates" in top.stdout and "candidates ranked" in top.stdout
     rows = _rows(short_run / "top.csv")
@@ -320,8 +327,12 @@ def test_robustness_top_ranks_a_runs_best_candidates_and_each_can_be_named(
     assert len(rows) == 3 * 3  # two cells and the whole table each
     ranked_first = top.stdout.index(labels[0])
     assert ranked_first < top.stdout.index(labels[1]) < top.stdout.index(labels[2])
-    number = labels[1].rsplit(" ", 1)[1]
-    alone = metaopt_cli("robustness", f"1:{number}", *cells, "--csv", "one.csv", cwd=short_run)
+    # the ranking names each candidate as another command takes it (RUN:CANDIDATE)
+    ranking = _rows(short_run / "ranking.csv")
+    assert [r["candidate"] for r in ranking] == labels and ranking[0]["meets_goals"] == ""
+    assert [r["target"] for r in ranking] == [f"1:{label.rsplit(' ', 1)[1]}" for label in labels]
+    alone = metaopt_cli("robustness", ranking[1]["target"], *cells, "--csv", "one.csv",
+                        cwd=short_run)  # fmt: skip
     assert alone.returncode == 0, alone.stderr
     assert _rows(short_run / "one.csv") == [r for r in rows if r["candidate"] == labels[1]]
     missing = metaopt_cli("robustness", "1:999", *cells, "--seeds", "1", cwd=short_run)

@@ -21,12 +21,14 @@ from metaopt.problem import ProblemInfo
 
 @dataclass(frozen=True)
 class Candidate:
-    """What is tested: a decision vector and the problem parameters it was found with."""
+    """What is tested: a decision vector and the problem parameters it was found with;
+    ``target``: how a command names it again (``RUN:NUMBER`` or a stored candidate's name)."""
 
     label: str
     problem: str
     params: Mapping[str, Any]
     x: np.ndarray
+    target: str = ""
 
 
 def find_candidate(
@@ -62,11 +64,14 @@ def find_candidates(
     if info is None:
         raise ConfigError(f"run {run.id}'s problem {run.problem!r} is not installed")
     params = resolve(info.params, run.problem_params, info.name)
-    label = f"run {run.id}" if top == 1 and not number else None
+    best_alone = top == 1 and not number
     return [
-        Candidate(label or f"run {run.id} candidate {r.number}", info.name, params, r.x)
+        Candidate(
+            f"run {run.id}" if best_alone else f"run {run.id} candidate {r.number}",
+            info.name, params, r.x, target=f"{run.id}:{r.number}",
+        )
         for r in records
-    ], info
+    ], info  # fmt: skip
 
 
 def stored_candidate_named(
@@ -79,7 +84,8 @@ def stored_candidate_named(
         stored = info.stored_candidates() if info.stored_candidates else {}
         if name in stored:
             params = resolve(info.params, stored[name].params, info.name)
-            return Candidate(name, info.name, params, stored[name].x), info, stored[name].seed
+            candidate = Candidate(name, info.name, params, stored[name].x, name)
+            return candidate, info, stored[name].seed
     return None
 
 

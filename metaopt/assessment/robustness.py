@@ -285,6 +285,27 @@ def write_csv(
                 median, low, high = result.summary(metric)
                 row += [median] if metric.startswith("fell") else [median, low, high]
             rows.append(row)
+    _write_rows(path, header, rows)
+
+
+RANKING_COLUMNS = ("rank", "target", "candidate", "goal_margin", "meets_goals", "score")
+
+
+def write_ranking(path: Path, ranked: Sequence[Ranked]) -> None:
+    """One row per candidate, best first: its rank, the target naming it to another command
+    (so a study chains a re-check into a race without reading the display), its label, its
+    goal margin and whether it meets every goal (empty without goals), its score."""
+    rows = [
+        [number, r.candidate.target, r.candidate.label,
+         "" if r.margin is None else r.margin,
+         "" if r.margin is None else r.margin >= 0, r.score]
+        for number, r in enumerate(ranked, start=1)
+    ]  # fmt: skip
+    _write_rows(path, list(RANKING_COLUMNS), rows)
+
+
+def _write_rows(path: Path, header: list[str], rows: list[list[Any]]) -> None:
+    """A CSV written whole or not at all (a killed run leaves no half-written file)."""
     partial = path.with_name(path.name + ".partial")
     with partial.open("w", newline="", encoding="utf-8") as handle:
         writer = csv.writer(handle)

@@ -5,6 +5,7 @@ metaopt.assessment.robustness)."""
 from __future__ import annotations
 
 import warnings
+from dataclasses import replace
 from pathlib import Path
 
 import click
@@ -70,6 +71,14 @@ from metaopt.settings import parse_problem_settings
     help="Write the table (every candidate's) as CSV here.",
 )
 @click.option(
+    "--ranking",
+    "ranking_path",
+    type=click.Path(dir_okay=False, path_type=Path),
+    default=None,
+    help="Write the ranking as CSV here: rank, target (RUN:CANDIDATE or NAME, to name it to "
+    "another command), candidate, goal margin, whether it meets the goals, score.",
+)
+@click.option(
     "--figure",
     "figure_path",
     type=click.Path(dir_okay=False, path_type=Path),
@@ -89,8 +98,8 @@ from metaopt.settings import parse_problem_settings
 def robustness_command(
     targets: tuple[str, ...], top: int, engines: str | None, seeds: int, seed: int,
     cells: str | None, settings: tuple[str, ...], csv_path: Path | None,
-    figure_path: Path | None, goal_texts: tuple[str, ...], executor: str | None,
-    workers: int | None, scheduler: str | None, db_path: str,
+    ranking_path: Path | None, figure_path: Path | None, goal_texts: tuple[str, ...],
+    executor: str | None, workers: int | None, scheduler: str | None, db_path: str,
 ) -> None:  # fmt: skip
     """Evaluate candidates over their problem's standard perturbation table, on every engine,
     over N seeds per cell: a run's best (or its --top K best), one of its candidates
@@ -99,6 +108,8 @@ def robustness_command(
     the best is shown cell by cell, and with --goal which goals it meets."""
     if csv_path is not None:
         check_output_file(str(csv_path), "--csv", suffix=".csv")
+    if ranking_path is not None:
+        check_output_file(str(ranking_path), "--ranking", suffix=".csv")
     if figure_path is not None:
         check_output_file(str(figure_path), "--figure", suffix=".png")
     plugins = registry()
@@ -106,7 +117,7 @@ def robustness_command(
     if info.perturbations is None:
         raise ConfigError(f"problem {info.name!r} has no perturbation table")
     changes = parse_problem_settings(settings, info)
-    candidates = [Candidate(c.label, c.problem, {**c.params, **changes}, c.x) for c in candidates]
+    candidates = [replace(c, params={**c.params, **changes}) for c in candidates]
     names = engine_names(engines) if engines is not None else tuple(plugins.physics_backends)
     for name in names:
         plugins.physics_backend(name)  # ConfigError listing the installed ones
@@ -151,6 +162,9 @@ def robustness_command(
             [(r.candidate, [*r.results, *robustness.whole_table(r.results)]) for r in ranked],
         )  # fmt: skip
         console.print(f"wrote {csv_path}")
+    if ranking_path is not None:
+        robustness.write_ranking(ranking_path, ranked)
+        console.print(f"wrote {ranking_path}")
     if figure_path is not None:
         from metaopt.reporting.plots import save_figure
 
