@@ -223,7 +223,8 @@ def test_goals_rank_by_the_smallest_margin_then_by_fitness(tmp_path: Path) -> No
     """With goals a candidate is scored by its smallest relative margin to any goal on any
     engine over the whole table (speed beyond the goal buys nothing, one engine's falls sink
     it); equal margins fall back to the fitness order; a failed evaluation is outside every
-    goal. The ranking's CSV keeps that order and says which meet every goal."""
+    goal (on every engine it failed on), and each counts the (goal, engine) pairs it misses.
+    The ranking's CSV keeps that order and says which meet every goal."""
 
     def c(label: str, speeds: dict[str, list[float]], fell: dict[str, list[float]], fit: float,
           failed: int = 0) -> tuple[Candidate, list[CellResult]]:  # fmt: skip
@@ -255,16 +256,23 @@ def test_goals_rank_by_the_smallest_margin_then_by_fitness(tmp_path: Path) -> No
     )  # +0.1 as well
     failed = c("failed", {"e1": [0.9] * 4, "e2": [0.9] * 4},
                {"e1": [0] * 4, "e2": [0] * 4}, fit=9.0, failed=1)  # fmt: skip
-    ranked = rank([fast_but_falls, steady, steady_fitter, failed], True, goals)
-    assert [r.candidate.label for r in ranked] == ["steady, fitter", "steady", "fast", "failed"]
-    assert [r.margin for r in ranked[:3]] == pytest.approx([0.1, 0.1, -1.0])
-    assert ranked[3].margin == -np.inf
+    crawl = c(
+        "crawl", {"e1": [0.3] * 4, "e2": [0.3] * 4}, {"e1": [0] * 4, "e2": [0] * 4}, fit=1.0
+    )  # speed 0.3 on both engines: two misses, -0.4
+    ranked = rank([fast_but_falls, steady, crawl, steady_fitter, failed], True, goals)
+    # the smallest margin decides: "crawl" misses two pairs by less than "fast" misses one
+    assert [r.candidate.label for r in ranked] == [
+        "steady, fitter", "steady", "crawl", "fast", "failed"]  # fmt: skip
+    assert [r.missed for r in ranked] == [0, 0, 2, 1, 2]
+    assert [r.margin for r in ranked[:4]] == pytest.approx([0.1, 0.1, -0.4, -1.0])
+    assert ranked[4].margin == -np.inf
     assert [r.candidate.label for r in rank([fast_but_falls, steady], True)] == ["fast", "steady"]
     write_ranking(tmp_path / "ranking.csv", ranked)
-    assert [(r["rank"], r["candidate"], r["meets_goals"]) for r in
+    assert [(r["rank"], r["candidate"], r["goals_missed"], r["meets_goals"]) for r in
             _rows(tmp_path / "ranking.csv")] == [
-        ("1", "steady, fitter", "True"), ("2", "steady", "True"), ("3", "fast", "False"),
-        ("4", "failed", "False")]  # fmt: skip
+        ("1", "steady, fitter", "0", "True"), ("2", "steady", "0", "True"),
+        ("3", "crawl", "2", "False"), ("4", "fast", "1", "False"),
+        ("5", "failed", "2", "False")]  # fmt: skip
     for bad in ("speed=0.5", "speed>=fast", "height>=1", "fell<=inf", ""):
         with pytest.raises(ConfigError, match=r"METRIC>=VALUE or METRIC<=VALUE .*speed, fell"):
             parse_goal(bad, table)

@@ -229,13 +229,15 @@ def parse_goal(text: str, table: PerturbationTable) -> Goal:
 @dataclass
 class Ranked:
     """A candidate's table and its score: the worst engine's mean fitness over the whole
-    table (a failed evaluation counts as the worst); with goals, ``margin``: its smallest
-    margin to any goal on any engine (Goal.margin)."""
+    table (a failed evaluation counts as the worst); with goals, ``missed``: how many
+    (goal, engine) pairs it misses, and ``margin``: its smallest margin to any goal on any
+    engine (Goal.margin)."""
 
     candidate: Candidate
     results: list[CellResult]
     score: float
     margin: float | None = None
+    missed: int | None = None
 
 
 def rank(
@@ -247,7 +249,8 @@ def rank(
     mean counts every fall at its fitness's price, the worst engine asks for one candidate
     that holds on all. With goals, by the smallest margin to a goal on any engine first (the
     candidate that meets every goal with the most room; fitness beyond a goal buys nothing),
-    then by fitness. Ties keep the given order."""
+    then by fitness; each also counts the (goal, engine) pairs it misses, shown beside it.
+    Ties keep the given order."""
     sign = 1.0 if maximize else -1.0
     ranked = []
     for candidate, results in tables:
@@ -257,8 +260,11 @@ def rank(
             else -math.inf
             for row in rows
         ]  # fmt: skip
-        margin = min(goal.margin(row) for goal in goals for row in rows) if goals else None
-        ranked.append(Ranked(candidate, results, sign * min(means), margin))
+        margins = [goal.margin(row) for goal in goals for row in rows]
+        ranked.append(
+            Ranked(candidate, results, sign * min(means), min(margins) if goals else None,
+                   sum(m < 0 for m in margins) if goals else None)
+        )  # fmt: skip
     return sorted(ranked, key=lambda r: (-(r.margin or 0.0), -sign * r.score))
 
 
@@ -288,19 +294,22 @@ def write_csv(
     _write_rows(path, header, rows)
 
 
-RANKING_COLUMNS = ("rank", "target", "candidate", "goal_margin", "meets_goals", "score")
+RANKING_COLUMNS = (
+    "rank", "target", "candidate", "goals_missed", "goal_margin", "meets_goals", "score"
+)  # fmt: skip
 
 
 def write_ranking(path: Path, ranked: Sequence[Ranked]) -> None:
     """One row per candidate, best first: its rank, the target naming it to another command
-    (so a study chains a re-check into a race without reading the display), its label, its
-    goal margin and whether it meets every goal (empty without goals), its score."""
+    (so a study chains a re-check into a race without reading the display), its label, the
+    (goal, engine) pairs it misses, its goal margin and whether it meets every goal (empty
+    without goals), its score."""
     rows = [
-        [number, r.candidate.target, r.candidate.label,
-         "" if r.margin is None else r.margin,
-         "" if r.margin is None else r.margin >= 0, r.score]
+        [number, r.candidate.target, r.candidate.label]
+        + (["", "", ""] if r.missed is None else [r.missed, r.margin, r.missed == 0])
+        + [r.score]
         for number, r in enumerate(ranked, start=1)
-    ]  # fmt: skip
+    ]
     _write_rows(path, list(RANKING_COLUMNS), rows)
 
 

@@ -353,16 +353,16 @@ def robustness_ranking(
     ranked: Sequence, version: str, metrics: Sequence[str], goals: Sequence = ()
 ) -> Table:
     """`metaopt robustness` with several candidates: best first, each with its score (the
-    worst engine's mean fitness over the table; with goals, first its smallest margin to a
-    goal) and, per engine over the whole table, the mean fitness, the first metric's median
-    and the rates."""
+    worst engine's mean fitness over the table; with goals, first the (goal, engine) pairs it
+    misses and its smallest margin to a goal) and, per engine over the whole table, the mean
+    fitness, the first metric's median and the rates."""
     from metaopt.assessment.robustness import whole_table
 
     rates = [m for m in metrics if m.startswith("fell")]
     by = f" by the goals {', '.join(map(str, goals))}" if goals else ""
     table = Table(title=f"candidates ranked over perturbation table {version}{by}",
                   title_justify="left")  # fmt: skip
-    margin = ["goal margin"] if goals else []
+    margin = ["goals missed", "goal margin"] if goals else []
     for name in ("rank", "candidate", *margin, "score", "engine", "fitness (mean)",
                  f"{metrics[0]} (median)", *rates):  # fmt: skip
         table.add_column(name, justify="left" if name in ("candidate", "engine") else "right")
@@ -371,7 +371,7 @@ def robustness_ranking(
             table.add_section()
         for row, total in enumerate(whole_table(entry.results)):
             mean = statistics.fmean(total.fitnesses) if total.fitnesses else math.nan
-            shown_margin = [f"{entry.margin:+.3f}"] if goals else []
+            shown_margin = [str(entry.missed), f"{entry.margin:+.3f}"] if goals else []
             first = (
                 (str(number), entry.candidate.label, *shown_margin, f"{entry.score:.3f}")
                 if row == 0
