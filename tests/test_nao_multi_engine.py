@@ -13,6 +13,7 @@ import pytest
 from metaopt.errors import ConfigError
 from metaopt.params import resolve
 from metaopt.plugins import registry
+from metaopt_problems.nao_walk.episode import FLIGHT_ALLOWED
 from metaopt_problems.nao_walk.plugin import NaoWalk
 from metaopt_problems.nao_walk.stored_gaits import gait_vector, load_gait
 
@@ -97,6 +98,33 @@ def test_engine_cap_caps_each_engine_before_the_mean_or_the_worst() -> None:
                 problem.close()
     finally:
         for problem in single.values():
+            problem.close()
+
+
+def test_the_flight_penalty_is_charged_past_the_cap() -> None:
+    """engine_cap caps an engine's progress, then its flight penalty is charged: a gait that
+    runs past the cap still pays for running (a cap taken after the penalty let the fast
+    engine's flight grow unpriced, as long as its progress stayed past the cap)."""
+    walk = {"controller": "stride", "duration": 6.0, "measure_flight": True}  # 3 s walked
+    x = gait_vector(load_gait("stride_mujoco"))  # fast, and runs
+    single = {name: _problem(name, **walk) for name in ("mujoco", "ode")}
+    joint = None
+    try:
+        alone = {name: problem.evaluate(x, 11) for name, problem in single.items()}
+        base = {name: e.fitness for name, e in alone.items()}
+        flight = {name: e.metrics["flight"] for name, e in alone.items()}
+        assert flight["mujoco"] > FLIGHT_ALLOWED + 0.05 and base["mujoco"] > 1.0, alone
+        cap, penalty = 0.5, 50.0
+        joint = _problem("mujoco+ode", engine_score="mean", engine_cap=cap,
+                         flight_penalty=penalty, **walk)  # fmt: skip
+        charged = [
+            min(base[name], cap) - penalty * max(0.0, flight[name] - FLIGHT_ALLOWED)
+            for name in single
+        ]
+        assert joint.evaluate(x, 11).fitness == pytest.approx(np.mean(charged))
+        assert min(charged) < cap - 2.0  # the penalty shows below the cap
+    finally:
+        for problem in (*single.values(), *([joint] if joint else [])):
             problem.close()
 
 

@@ -204,7 +204,11 @@ def heading(rotation: np.ndarray) -> float:
 
 
 def fitness(
-    result: EpisodeResult, kind: str, duration: float, flight_penalty: float = 0.0
+    result: EpisodeResult,
+    kind: str,
+    duration: float,
+    flight_penalty: float = 0.0,
+    cap: float = math.inf,
 ) -> float:
     """Score an episode (to be maximized); progress is X - |Y|.
 
@@ -217,8 +221,9 @@ def fitness(
     constant and the walk it cut short, so a gait that walks on one engine and falls after
     walking on another scores above standing (a first search over several engines from
     random gaits), and a lunge forward does not pay.
-    Each kind then loses flight_penalty metres per unit of flight share above FLIGHT_ALLOWED,
-    where flight was measured: a run scores below a walk of the same progress.
+    The score counts at most cap (nao-walk's engine_cap: progress past it stops paying). Each
+    kind then loses flight_penalty metres per unit of flight share above FLIGHT_ALLOWED, where
+    flight was measured: a run scores below a walk of the same progress, past the cap too.
     """
     progress = result.distance - abs(result.drift)
     remaining = duration - result.fall_time
@@ -230,6 +235,7 @@ def fitness(
         score = progress / remaining
     else:
         score = progress - FALL_PENALTY - FALL_PENALTY_RATE * remaining
+    score = min(score, cap)
     if flight_penalty and not math.isnan(result.flight):
         score -= flight_penalty * max(0.0, result.flight - FLIGHT_ALLOWED)
     return score

@@ -89,9 +89,9 @@ PARAMS = (
           "engine's) or mean (their mean; the plain metrics stay the worst engine's)",
           choices=ENGINE_SCORES),
     Param("engine_cap", float, 0.0, "with several engines: each engine's fitness counts at "
-          "most this before engine_score takes the worst or the mean (0 = no cap): with the "
-          "mean, going past the cap on one engine stops paying, so the slower engines must "
-          "catch up", low=0.0),
+          "most this before its flight penalty and before engine_score takes the worst or the "
+          "mean (0 = no cap): with the mean, going past the cap on one engine stops paying, so "
+          "the slower engines must catch up, and running there still costs", low=0.0),
     Param("controller", str, "paper", "paper (the paper's CPG and its 10 parameters), "
           "extended (sway, knee lift, torso feedback; docs/nao-walk.md), stride (extended, "
           "with a knee phase and an ankle push-off) or steered (stride, with heading "
@@ -300,21 +300,21 @@ class NaoWalk(Problem):
         gait = self.gait(x)
         if len(self.engines) == 1:
             return self._evaluate_on(self.engines[0], gait, seed)
-        on_engine = {engine: self._evaluate_on(engine, gait, seed) for engine in self.engines}
+        cap = self.engine_cap or math.inf
+        on_engine = {engine: self._evaluate_on(engine, gait, seed, cap) for engine in self.engines}
         worst = min(on_engine.values(), key=lambda evaluation: evaluation.fitness)
         metrics = dict(worst.metrics)
         for engine, evaluation in on_engine.items():
             for name, value in evaluation.metrics.items():
                 metrics[f"{name}@{engine}"] = value
-        cap = self.engine_cap or math.inf
-        scores = [min(e.fitness, cap) for e in on_engine.values()]
+        scores = [e.fitness for e in on_engine.values()]
         if self.engine_score == "mean":
             return Evaluation(float(np.mean(scores)), metrics)
         return Evaluation(min(scores), metrics)
 
-    def _evaluate_on(self, engine: str, gait: Gait, seed: int) -> Evaluation:
+    def _evaluate_on(self, engine: str, gait: Gait, seed: int, cap: float = math.inf) -> Evaluation:
         result = self.runner_on(engine).run(gait, disturbance=self.disturbance(seed, engine))
-        value = fitness(result, self.fitness_kind, self.episode.duration, self.flight_penalty)
+        value = fitness(result, self.fitness_kind, self.episode.duration, self.flight_penalty, cap)
         return Evaluation(value, result.metrics())
 
     def figures(self, x: np.ndarray, seed: int) -> dict[str, Figure]:
