@@ -8,12 +8,16 @@
 #     penalty (a walk, not a run), run seeds 100 SEED + 10 p + 1 ... + 4, two candidates per
 #     batch, one per worker (HS improvises one at a time by default): gaits that walk, found
 #     cheaply; about half the runs find a walker.
-#   Stage 1b: HS (run seed 10 SEED + p) from their four bests (each, then gaits within 5 % of
-#     each range around each in turn) on all three engines at noise 0.1, scored by the mean of
+#   Basins: the four runs' bests raced in the nominal world on all three engines, 8 seeds
+#     each (drawn from 3), ranked by the slowest engine's median speed (--goal speed>=0.44):
+#     stage 1b starts from the winner alone, so its memory holds one basin (started from all
+#     four, most of its first 300 harmonies mixed them and fell).
+#   Stage 1b: HS (run seed 10 SEED + p) from that best (then gaits within 5 % of each range
+#     around it) on all three engines at noise 0.1, scored by the mean of
 #     the engines' progress, each capped at 6 m (engine_cap: 0.5 m/s over the 12 s walked; past
 #     it an engine's progress stops paying, so a gait MuJoCo already walks fast is pushed to
 #     walk on PyBullet and ODE), a fall costing 1 m and the walk it cut short
-#     (fitness=progress), at flight penalty 50; 600 evaluations.
+#     (fitness=progress), at flight penalty 50, charged past the cap too; 600 evaluations.
 # Re-check: each stage 1b's 3 best candidates (9 in all) over the standard table, one seed per
 #   cell (drawn from 1), ranked by their worst engine's mean fitness (robust fitness, flight
 #   penalty 100): a run's best is the luckiest of hundreds of one-episode scores, and which
@@ -24,30 +28,46 @@
 #   noise of a fall rate estimated from 110 episodes; then by fitness. One seed per cell cannot
 #   tell a gait that falls 1 time in 20 from one that falls 1 time in 10, and the winner of 9
 #   noisy scores is the luckiest: fresh seeds for the few best correct the luck (racing, as in
-#   successive halving).
+#   successive halving). Each choice reads the previous one's --ranking CSV.
 # Then the chosen candidate over the whole standard table on the standard seeds (drawn from 0).
-# This is the twelfth search; the eleventh is this script with a race at 5 seeds per cell
-# ranked by fitness (commit 17bbed3), the tenth the same without the race (commit 208ebc5).
+# Knobs for the pilots after the twelfth search (docs/robustness/searches.md): TOP=10 (the
+# re-check takes each stage 1b's 10 best), STAGE1_ENGINE=ode (stage 1 on ODE).
+# This is the thirteenth search, run after commit d228dc7 (nao-walk charges the flight
+# penalty past engine_cap). STAGE1B_START=all gives the twelfth's stage 1b, from all four
+# stage-1 bests; the twelfth (commit f1b7010) and the thirteenth's pilot ran before d228dc7.
+# The eleventh is the twelfth with a race at 5 seeds per cell ranked by fitness (commit
+# 17bbed3), the tenth the same without the race (commit 208ebc5).
 # The ninth (one pipeline of 800 evaluations in stage 1b, its 8 best re-checked) is this
 # script at commit 5ed7043, the seventh at 3c42de4, the sixth at 6e1fe34, the fifth at
 # 3c8db53, the fourth at ff6956d, the third at abce00d, the second at 9d03e62.
 set -euo pipefail
-seed=${1:?usage: [STAGE1B_BUDGET=N TOP=K] robust-walk-search.sh SEED}
+seed=${1:?usage: [STAGE1B_BUDGET=N TOP=K STAGE1_ENGINE=E STAGE1B_START=all|raced] robust-walk-search.sh SEED}
 stage1b_budget=${STAGE1B_BUDGET:-600}
 top=${TOP:-3}
+stage1_engine=${STAGE1_ENGINE:-mujoco}
+stage1b_start=${STAGE1B_START:-raced}
 db=robust-walk-s$seed.db
 if [ -e "$db" ]; then echo "$db exists: the stages number their runs from 1" >&2; exit 2; fi
 walk=(--set controller=steered)
+first() { awk -F, -v n="$2" 'NR > 1 && NR <= n + 1 {print $2}' "$1"; }  # a ranking's N best
 run=0
 finals=()
 for p in 1 2 3; do
     starts=()
     for r in 1 2 3 4; do
         metaopt run -o hs -p nao-walk --budget 1000 --seed $((100 * seed + 10 * p + r)) \
-            "${walk[@]}" --set flight_penalty=20 --workers 2 --batch 2 --db "$db"
+            "${walk[@]}" --set backend="$stage1_engine" --set flight_penalty=20 --workers 2 \
+            --batch 2 --db "$db"
         run=$((run + 1))
         starts+=(--start-from "$run")
     done
+    if [ "$stage1b_start" = raced ]; then
+        basins="robust-walk-s$seed-p$p-basins.csv"
+        metaopt robustness $((run - 3)) $((run - 2)) $((run - 1)) "$run" --cells nominal \
+            --seeds 8 --seed 3 --goal "speed>=0.44" --set fitness=progress \
+            --set flight_penalty=50 --workers 2 --db "$db" --ranking "$basins"
+        starts=(--start-from "$(first "$basins" 1)")
+    fi
     metaopt run -o hs -p nao-walk --budget "$stage1b_budget" --seed $((10 * seed + p)) \
         "${starts[@]}" "${walk[@]}" --set flight_penalty=50 \
         --set backend=mujoco+pybullet+ode --set engine_score=mean --set engine_cap=6 \
@@ -57,14 +77,12 @@ for p in 1 2 3; do
 done
 metaopt robustness "${finals[@]}" --top "$top" --seeds 1 --seed 1 --set fitness=robust \
     --set flight_penalty=100 --workers 2 --db "$db" --csv "robust-walk-s$seed-top.csv" \
-    | tee "robust-walk-s$seed-top.txt"
-finalists=$(grep -oE "run [0-9]+ candidate [0-9]+" "robust-walk-s$seed-top.txt" | head -3 \
-    | awk '{print $2 ":" $4}')
-# shellcheck disable=SC2086  # one word per finalist
-metaopt robustness $finalists --seeds 10 --seed 2 --set fitness=robust --set flight_penalty=100 \
+    --ranking "robust-walk-s$seed-top-ranking.csv" | tee "robust-walk-s$seed-top.txt"
+# shellcheck disable=SC2046  # one word per finalist
+metaopt robustness $(first "robust-walk-s$seed-top-ranking.csv" 3) --seeds 10 --seed 2 \
+    --set fitness=robust --set flight_penalty=100 \
     --goal "speed>=0.44" --goal "fell<=0.02" --goal "|drift|<=0.3" --goal "flight<=0.05" \
-    --workers 2 --db "$db" --csv "robust-walk-s$seed-race.csv" | tee "robust-walk-s$seed-race.txt"
-chosen=$(grep -m1 -oE "run [0-9]+ candidate [0-9]+" "robust-walk-s$seed-race.txt" \
-    | awk '{print $2 ":" $4}')
-metaopt robustness "$chosen" --seeds 10 --workers 2 --db "$db" \
-    --csv "robust-walk-s$seed.csv" --figure "robust-walk-s$seed.png"
+    --workers 2 --db "$db" --csv "robust-walk-s$seed-race.csv" \
+    --ranking "robust-walk-s$seed-race-ranking.csv" | tee "robust-walk-s$seed-race.txt"
+metaopt robustness "$(first "robust-walk-s$seed-race-ranking.csv" 1)" --seeds 10 --workers 2 \
+    --db "$db" --csv "robust-walk-s$seed.csv" --figure "robust-walk-s$seed.png"
