@@ -228,13 +228,15 @@ def parse_goal(text: str, table: PerturbationTable) -> Goal:
 
 @dataclass
 class Ranked:
-    """A candidate's table and its score: the worst engine's mean fitness over the whole
-    table (a failed evaluation counts as the worst); with goals, ``missed``: how many
+    """A candidate's table, its whole-table rows per engine, and its score: the worst
+    engine's mean fitness over the whole table (a failed evaluation counts as the worst); with
+    goals, ``missed``: how many
     (goal, engine) pairs it misses, and ``margin``: its smallest margin to any goal on any
     engine (Goal.margin)."""
 
     candidate: Candidate
     results: list[CellResult]
+    totals: list[CellResult]  # whole_table(results), per engine
     score: float
     margin: float | None = None
     missed: int | None = None
@@ -262,8 +264,8 @@ def rank(
         ]  # fmt: skip
         margins = [goal.margin(row) for goal in goals for row in rows]
         ranked.append(
-            Ranked(candidate, results, sign * min(means), min(margins) if goals else None,
-                   sum(m < 0 for m in margins) if goals else None)
+            Ranked(candidate, results, rows, sign * min(means),
+                   min(margins) if goals else None, sum(m < 0 for m in margins) if goals else None)
         )  # fmt: skip
     return sorted(ranked, key=lambda r: (-(r.margin or 0.0), -sign * r.score))
 

@@ -76,7 +76,8 @@ from metaopt.settings import parse_problem_settings
     type=click.Path(dir_okay=False, path_type=Path),
     default=None,
     help="Write the ranking as CSV here: rank, target (RUN:CANDIDATE or NAME, to name it to "
-    "another command), candidate, goal margin, whether it meets the goals, score.",
+    "another command), candidate, goals missed, goal margin, whether it meets the goals, "
+    "score.",
 )
 @click.option(
     "--figure",
@@ -148,18 +149,17 @@ def robustness_command(
     if len(ranked) > 1:
         console.print(display.robustness_ranking(ranked, table.version, table.metrics, goals))
     best = ranked[0]
-    totals = robustness.whole_table(best.results)
     console.print(
         display.robustness_table(
-            best.candidate.label, table.version, best.results, table.metrics, totals
+            best.candidate.label, table.version, best.results, table.metrics, best.totals
         )
     )
     if goals:
-        console.print(display.goal_verdict(best.candidate.label, totals, goals))
+        console.print(display.goal_verdict(best.candidate.label, best.totals, goals))
     if csv_path is not None:
         robustness.write_csv(
             csv_path, table,
-            [(r.candidate, [*r.results, *robustness.whole_table(r.results)]) for r in ranked],
+            [(r.candidate, [*r.results, *r.totals]) for r in ranked],
         )  # fmt: skip
         console.print(f"wrote {csv_path}")
     if ranking_path is not None:

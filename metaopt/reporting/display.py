@@ -356,8 +356,6 @@ def robustness_ranking(
     worst engine's mean fitness over the table; with goals, first the (goal, engine) pairs it
     misses and its smallest margin to a goal) and, per engine over the whole table, the mean
     fitness, the first metric's median and the rates."""
-    from metaopt.assessment.robustness import whole_table
-
     rates = [m for m in metrics if m.startswith("fell")]
     by = f" by the goals {', '.join(map(str, goals))}" if goals else ""
     table = Table(title=f"candidates ranked over perturbation table {version}{by}",
@@ -369,7 +367,7 @@ def robustness_ranking(
     for number, entry in enumerate(ranked, start=1):
         if number > 1:
             table.add_section()
-        for row, total in enumerate(whole_table(entry.results)):
+        for row, total in enumerate(entry.totals):
             mean = statistics.fmean(total.fitnesses) if total.fitnesses else math.nan
             shown_margin = [str(entry.missed), f"{entry.margin:+.3f}"] if goals else []
             first = (
