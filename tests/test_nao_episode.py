@@ -143,6 +143,9 @@ def test_progress_fitness_scores_a_fall_by_the_walk_it_cut_short() -> None:
     # the flight penalty applies as with the other kinds
     flying = EpisodeResult(1.0, 0.0, 12.0, False, 15.0, 0.3, 0.4, flight=0.15)
     assert fitness(flying, "progress", 15.0, flight_penalty=20) == pytest.approx(1.0 - 20 * 0.1)
+    # above the share a search allows (flight_allowed), not the goal's 5 %
+    stricter = fitness(flying, "progress", 15.0, flight_penalty=20, flight_allowed=0.02)
+    assert stricter == pytest.approx(1.0 - 20 * 0.13)
 
 
 def test_problem_rejects_unknown_backend_and_bad_timing() -> None:

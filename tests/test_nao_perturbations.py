@@ -141,23 +141,29 @@ def test_flight_is_the_share_footfalls_measures(backend: str) -> None:
 def test_flight_penalty_costs_a_run_its_flight_above_the_allowed_share(backend: str) -> None:
     """The same running gait (stride_both flies about a third of the time) loses exactly
     flight_penalty x (flight - 5 %) with the penalty on, which turns the flight measurement on
-    by itself; a gait that keeps a foot down (hs_walk) loses nothing."""
+    by itself; a gait that keeps a foot down (hs_walk) loses nothing. With flight_allowed 0
+    every bit of flight is charged."""
     for name, flies in (("stride_both", True), ("hs_walk", False)):
         record = load_gait(name)
         params = {k: v for k, v in record["problem_params"].items() if k != "friction"}
         params.update(backend=backend, duration=7.0, lock=1.0)  # each engine's own friction
-        free, penalised = (_problem(**params, flight_penalty=p) for p in (0.0, 20.0))
+        free, penalised, strict = (
+            _problem(**params, flight_penalty=p, flight_allowed=allowed)
+            for p, allowed in ((0.0, FLIGHT_ALLOWED), (20.0, FLIGHT_ALLOWED), (20.0, 0.0))
+        )
         try:
             x = gait_vector(record)
-            plain, charged = free.evaluate(x, 0), penalised.evaluate(x, 0)
+            plain, charged, all_charged = (p.evaluate(x, 0) for p in (free, penalised, strict))
         finally:
-            free.close()
-            penalised.close()
+            for problem in (free, penalised, strict):
+                problem.close()
         assert "flight" not in plain.metrics
         assert charged.metrics["distance"] == plain.metrics["distance"]  # the same episode
-        excess = max(0.0, charged.metrics["flight"] - FLIGHT_ALLOWED)
-        assert (excess > 0.1) == flies, (name, charged.metrics["flight"])
+        flight = charged.metrics["flight"]
+        excess = max(0.0, flight - FLIGHT_ALLOWED)
+        assert (excess > 0.1) == flies, (name, flight)
         assert charged.fitness == pytest.approx(plain.fitness - 20.0 * excess, abs=1e-12)
+        assert all_charged.fitness == pytest.approx(plain.fitness - 20.0 * flight, abs=1e-12)
 
 
 def test_a_push_outside_the_walking_phase_is_refused() -> None:

@@ -32,7 +32,7 @@ FALL_PENALTY = 1.0
 FALL_PENALTY_RATE = 1.0
 FITNESS_KINDS = ("robust", "paper", "progress")
 #: Share of the walking phase a walk may spend with neither foot on the ground before
-#: flight_penalty applies (issue 16's "a walk, not a run": at most 5 %).
+#: flight_penalty applies, by default (issue 16's "a walk, not a run": at most 5 %).
 FLIGHT_ALLOWED = 0.05
 #: A foot touches the ground when its normal contact force exceeds this, N (the robot weighs
 #: about 50 N).
@@ -209,6 +209,7 @@ def fitness(
     duration: float,
     flight_penalty: float = 0.0,
     cap: float = math.inf,
+    flight_allowed: float = FLIGHT_ALLOWED,
 ) -> float:
     """Score an episode (to be maximized); progress is X - |Y|.
 
@@ -222,7 +223,7 @@ def fitness(
     walking on another scores above standing (a first search over several engines from
     random gaits), and a lunge forward does not pay.
     The score counts at most cap (nao-walk's engine_cap: progress past it stops paying). Each
-    kind then loses flight_penalty metres per unit of flight share above FLIGHT_ALLOWED, where
+    kind then loses flight_penalty metres per unit of flight share above flight_allowed, where
     flight was measured: a run scores below a walk of the same progress, past the cap too.
     """
     progress = result.distance - abs(result.drift)
@@ -237,7 +238,7 @@ def fitness(
         score = progress - FALL_PENALTY - FALL_PENALTY_RATE * remaining
     score = min(score, cap)
     if flight_penalty and not math.isnan(result.flight):
-        score -= flight_penalty * max(0.0, result.flight - FLIGHT_ALLOWED)
+        score -= flight_penalty * max(0.0, result.flight - flight_allowed)
     return score
 
 
