@@ -31,7 +31,7 @@ from metaopt.problem import Sense
 from metaopt.reporting.result_table import ResultTable
 from metaopt.run_loop import RunInterrupted, RunSettings
 from metaopt.storage.experiment_store import ExperimentStore
-from tests.conftest import metaopt_cli
+from tests.conftest import ROOT, metaopt_cli
 
 SPHERE_FLAGS = ("-o", "hs", "-o", "random", "-p", "sphere", "--seeds", "5", "--budget", "300",
                 "--set", "dim=5")  # fmt: skip
@@ -279,8 +279,14 @@ def test_an_edited_experiment_under_the_same_name_is_refused(tmp_path: Path) -> 
         ('problem = "sphere"\nseeds = 2\n[[optimizers]]\nname = "hs"\n',
          "optimizer entry 1 ('hs') has no 'budget'"),
         ('problem = "sphere"\nseeds = [1, 2\n', "not valid TOML"),
+        ('problem = "nao-walk"\nseeds = 1\n[[optimizers]]\nname = "hs"\nbudget = 4\n'
+         'settings = { start_from = "goal_wlk" }\n',
+         "start_from 'goal_wlk' is not a stored candidate"),
+        ('problem = "nao-walk"\nseeds = 1\n[[optimizers]]\nname = "hs"\nbudget = 4\n'
+         'settings = { start_from = "goal_walk" }\n',  # a steered gait, the paper's controller
+         "'goal_walk' has the variables"),
     ],
-    ids=["unknown optimizer", "missing budget", "bad TOML"],
+    ids=["unknown optimizer", "missing budget", "bad TOML", "unknown start", "other variables"],
 )  # fmt: skip
 def test_a_bad_experiment_file_is_one_clear_error(tmp_path: Path, text: str, message: str) -> None:
     (tmp_path / "bad.toml").write_text(text)
@@ -289,6 +295,43 @@ def test_a_bad_experiment_file_is_one_clear_error(tmp_path: Path, text: str, mes
     assert "Traceback" not in done.stderr
     assert "bad.toml: " in done.stderr and message in " ".join(done.stderr.split())
     assert not (tmp_path / "metaopt.db").exists()
+
+
+def test_an_experiment_file_starts_its_runs_from_stored_candidates(tmp_path: Path) -> None:
+    """settings.start_from names stored candidates: every run's first candidates are their
+    points, in the order given (a warm start, as run --start-from), on every cell."""
+    (tmp_path / "warm.toml").write_text(
+        'problem = "nao-walk"\nseeds = [1]\n'
+        '[problem_settings]\ncontroller = "steered"\nduration = 2.0\nlock = 1.0\n'
+        'backend = ["mujoco", "ode"]\n'
+        '[[optimizers]]\nname = "hs"\nbudget = 4\n'
+        'settings = { start_from = ["goal_walk", "steered_walk"], start_points = 3 }\n'
+    )
+    done = metaopt_cli("compare", "warm.toml", cwd=tmp_path)
+    assert done.returncode == 0, done.stderr
+    stored = registry().problem("nao-walk").stored_candidates()
+    with ExperimentStore(tmp_path / "metaopt.db") as store:
+        runs = store.runs()
+        assert len(runs) == 2
+        for run in runs:
+            assert run.settings["start_from"] == "goal_walk, steered_walk"
+            first = [e.x for e in store.evaluations(run.id)][:2]
+            np.testing.assert_array_equal(first[0], stored["goal_walk"].x)
+            np.testing.assert_array_equal(first[1], stored["steered_walk"].x)
+
+
+def test_the_documented_warm_start_experiment_loads_its_gaits(tmp_path: Path) -> None:
+    """docs/comparing.md's example of settings.start_from, as written there."""
+    text = (ROOT / "docs" / "comparing.md").read_text(encoding="utf-8")
+    example = text.split("### Starting from a stored gait")[1].split("```toml")[1]
+    (tmp_path / "refine.toml").write_text(example.split("```")[0])
+    experiment = load_experiment(tmp_path / "refine.toml", registry())
+    stored = registry().problem("nao-walk").stored_candidates()
+    starts = {entry.label: entry.settings.start for entry in experiment.optimizers}
+    assert starts == {
+        "hs": [list(stored["goal_walk"].x)],
+        "ga": [list(stored["goal_walk"].x), list(stored["capped_walk"].x)],
+    }
 
 
 def test_an_experiment_file_defines_the_grid(tmp_path: Path) -> None:

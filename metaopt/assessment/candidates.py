@@ -117,6 +117,42 @@ def find_start(
     """``target`` (as find_candidate finds it) to start a run of ``problem`` with
     ``problem_params`` from; ConfigError unless it is a candidate of the same variables."""
     candidate, info = find_candidate(target, problems, db_path)
+    _check_start(target, candidate, info, problem, problem_params)
+    return candidate
+
+
+def stored_start(
+    name: str,
+    problem: ProblemInfo,
+    problem_params: Mapping[str, Any],
+    problems: Mapping[str, ProblemInfo],
+) -> Candidate:
+    """The stored candidate ``name`` to start a run of ``problem`` with ``problem_params``
+    from, for an experiment file (which names no run: its runs' store is the comparison's);
+    ConfigError naming what is accepted otherwise."""
+    named = stored_candidate_named(name, problems)
+    if named is None:
+        names = sorted(n for i in problems.values() if i.stored_candidates
+                       for n in i.stored_candidates())  # fmt: skip
+        raise ConfigError(
+            f"start_from {name!r} is not a stored candidate ({', '.join(names) or 'none'}); "
+            "an experiment starts from stored candidates by name, or from values: "
+            "settings.start = [[...]]"
+        )
+    candidate, info, _ = named
+    _check_start(name, candidate, info, problem, problem_params)
+    return candidate
+
+
+def _check_start(
+    target: str,
+    candidate: Candidate,
+    info: ProblemInfo,
+    problem: ProblemInfo,
+    problem_params: Mapping[str, Any],
+) -> None:
+    """ConfigError unless ``candidate`` (of ``info``) has the variables of ``problem`` built
+    with ``problem_params``."""
     if info.name != problem.name:
         raise ConfigError(
             f"{target!r} is a candidate of {info.name!r}, not of {problem.name!r}: start from "
@@ -130,7 +166,6 @@ def find_start(
             f"{', '.join(wanted)} (e.g. another controller): start from a candidate of the "
             "same variables"
         )
-    return candidate
 
 
 def _space_names(info: ProblemInfo, params: Mapping[str, Any]) -> tuple[str, ...]:

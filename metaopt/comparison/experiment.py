@@ -12,6 +12,7 @@ from dataclasses import dataclass, field, fields
 from pathlib import Path
 from typing import Any
 
+from metaopt.assessment.candidates import stored_start
 from metaopt.errors import ConfigError
 from metaopt.params import Param, resolve, suggest
 from metaopt.plugins import Registry
@@ -235,7 +236,7 @@ def _experiment(raw: dict[str, Any], plugins: Registry) -> Experiment:
     if not isinstance(entries, list) or not entries:
         raise ConfigError("no optimizers given; add at least one optimizer with a name and budget")
     optimizers = tuple(
-        _optimizer_entry(entry, number, default_budget, plugins)
+        _optimizer_entry(entry, number, default_budget, plugins, problem_info, grid)
         for number, entry in enumerate(entries, start=1)
     )
     labels = [entry.label for entry in optimizers]
@@ -284,7 +285,12 @@ def _problem_grid(table: Any, problem_info: ProblemInfo) -> dict[str, list[Any]]
 
 
 def _optimizer_entry(
-    entry: Any, number: int, default_budget: Any, plugins: Registry
+    entry: Any,
+    number: int,
+    default_budget: Any,
+    plugins: Registry,
+    problem_info: ProblemInfo,
+    grid: dict[str, list[Any]],
 ) -> OptimizerEntry:
     where = f"optimizer entry {number}"
     if not isinstance(entry, dict) or "name" not in entry:
@@ -307,12 +313,43 @@ def _optimizer_entry(
     _known_keys(settings, tuple(f.name for f in fields(RunSettings)), f"{where} settings")
     try:
         resolve(info.params, params, f"optimizer {info.name!r}")
+        if "start_from" in settings:
+            settings = {**settings, **_stored_starts(settings, problem_info, grid, plugins)}
         run_settings = RunSettings(**settings)
         run_settings.check(budget)
     except (ConfigError, TypeError) as error:
         raise ConfigError(f"{where}: {error}") from None
     label = entry.get("label", info.name)
     return OptimizerEntry(str(label), info.name, budget, dict(params), run_settings)
+
+
+def _stored_starts(
+    settings: dict[str, Any],
+    problem_info: ProblemInfo,
+    grid: dict[str, list[Any]],
+    plugins: Registry,
+) -> dict[str, Any]:
+    """The run settings ``start`` (the points) and ``start_from`` (their names) for
+    ``settings.start_from``: a stored candidate's name or a list of them, each checked to have
+    the variables of every cell's problem."""
+    names = settings["start_from"]
+    if isinstance(names, str):
+        names = [names]
+    if not isinstance(names, list) or not names or not all(isinstance(n, str) for n in names):
+        raise ConfigError(
+            f"settings.start_from must be a stored candidate's name or a list of them, "
+            f"got {settings['start_from']!r}"
+        )
+    if "start" in settings:
+        raise ConfigError(
+            "settings give both start (values) and start_from (stored candidates); give one"
+        )
+    combinations = [dict(zip(grid, values)) for values in itertools.product(*grid.values())]
+    points = []
+    for name in names:
+        found = [stored_start(name, problem_info, c, plugins.problems) for c in combinations]
+        points.append([float(value) for value in found[0].x])
+    return {"start": points, "start_from": ", ".join(names)}
 
 
 def _known_keys(table: dict[str, Any], known: tuple[str, ...], where: str) -> None:
