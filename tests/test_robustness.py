@@ -237,7 +237,9 @@ def test_goals_rank_by_the_smallest_margin_then_by_fitness(tmp_path: Path) -> No
         return Candidate(label, "p", {}, np.zeros(1)), rows
 
     table = PerturbationTable("t-1", (), ("speed", "fell"))
-    goals = [parse_goal("speed>=0.5", table), parse_goal(" fell <= 0.25", table)]
+    goals = [
+        parse_goal(text, table.metrics, table.version) for text in ("speed>=0.5", " fell <= 0.25")
+    ]
     assert [str(g) for g in goals] == ["speed>=0.5", "fell<=0.25"]
     fast_but_falls = c(
         "fast",
@@ -275,7 +277,7 @@ def test_goals_rank_by_the_smallest_margin_then_by_fitness(tmp_path: Path) -> No
         ("5", "failed", "2", "False")]  # fmt: skip
     for bad in ("speed=0.5", "speed>=fast", "height>=1", "fell<=inf", ""):
         with pytest.raises(ConfigError, match=r"METRIC>=VALUE or METRIC<=VALUE .*speed, fell"):
-            parse_goal(bad, table)
+            parse_goal(bad, table.metrics, table.version)
 
 
 def test_a_ranking_names_the_parameters_its_candidates_differ_in() -> None:

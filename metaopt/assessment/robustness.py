@@ -199,21 +199,24 @@ class Goal:
         return f"{self.metric}{'>=' if self.at_least else '<='}{self.threshold:g}"
 
     def margin(self, row: CellResult) -> float:
-        """How far inside the bound the row is, relative to the threshold (absolute for a
+        """margin_of the row's figure for the metric (its median; a rate's value)."""
+        return self.margin_of(row.summary(self.metric)[0], row.failed)
+
+    def margin_of(self, value: float, failed: int = 0) -> float:
+        """How far inside the bound a figure is, relative to the threshold (absolute for a
         threshold of 0): negative outside it, -inf where an evaluation failed."""
-        value = row.summary(self.metric)[0]
-        if row.failed or math.isnan(value):
+        if failed or math.isnan(value):
             return -math.inf
         slack = value - self.threshold if self.at_least else self.threshold - value
         return slack / abs(self.threshold) if self.threshold else slack
 
 
-def parse_goal(text: str, table: PerturbationTable) -> Goal:
-    """``METRIC>=VALUE`` or ``METRIC<=VALUE``, METRIC one of the table's; ConfigError
-    naming what is accepted otherwise."""
+def parse_goal(text: str, metrics: Sequence[str], version: str) -> Goal:
+    """``METRIC>=VALUE`` or ``METRIC<=VALUE``, METRIC one of ``metrics`` (those of table
+    ``version``); ConfigError naming what is accepted otherwise."""
     for operator in (">=", "<="):
         metric, found, value = text.partition(operator)
-        if found and metric.strip() in table.metrics:
+        if found and metric.strip() in metrics:
             try:
                 threshold = float(value)
             except ValueError:
@@ -222,7 +225,7 @@ def parse_goal(text: str, table: PerturbationTable) -> Goal:
                 return Goal(metric.strip(), operator == ">=", threshold)
     raise ConfigError(
         f"goal {text!r}: write METRIC>=VALUE or METRIC<=VALUE with a finite VALUE and a "
-        f"metric of table {table.version} ({', '.join(table.metrics)})"
+        f"metric of table {version} ({', '.join(metrics)})"
     )
 
 
@@ -293,7 +296,7 @@ def write_csv(
                 median, low, high = result.summary(metric)
                 row += [median] if metric.startswith("fell") else [median, low, high]
             rows.append(row)
-    _write_rows(path, header, rows)
+    write_rows(path, header, rows)
 
 
 RANKING_COLUMNS = (
@@ -312,10 +315,10 @@ def write_ranking(path: Path, ranked: Sequence[Ranked]) -> None:
         + [r.score]
         for number, r in enumerate(ranked, start=1)
     ]
-    _write_rows(path, list(RANKING_COLUMNS), rows)
+    write_rows(path, list(RANKING_COLUMNS), rows)
 
 
-def _write_rows(path: Path, header: list[str], rows: list[list[Any]]) -> None:
+def write_rows(path: Path, header: list[str], rows: list[list[Any]]) -> None:
     """A CSV written whole or not at all (a killed run leaves no half-written file)."""
     partial = path.with_name(path.name + ".partial")
     with partial.open("w", newline="", encoding="utf-8") as handle:

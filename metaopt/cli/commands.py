@@ -26,7 +26,7 @@ from metaopt.cli.compare import compare
 from metaopt.cli.new import new
 from metaopt.cli.output import check_output_file, format_option, print_records, written_whole
 from metaopt.cli.report import report, write_replay_video
-from metaopt.cli.robustness import robustness_command
+from metaopt.cli.robustness import robustness_command, robustness_summary_command
 from metaopt.errors import MetaoptError, SettingWarning
 from metaopt.plugins import registry
 from metaopt.reporting import display
@@ -440,3 +440,4 @@ main.add_command(new)
 main.add_command(report)
 main.add_command(compare)
 main.add_command(robustness_command)
+main.add_command(robustness_summary_command)

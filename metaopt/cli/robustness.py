@@ -10,7 +10,7 @@ from pathlib import Path
 
 import click
 
-from metaopt.assessment import robustness
+from metaopt.assessment import robustness, search_medians
 from metaopt.assessment.candidates import Candidate, find_candidates
 from metaopt.cli.common import (
     MAX_INT64,
@@ -125,7 +125,7 @@ def robustness_command(
     table = robustness.select_cells(
         info.perturbations, [c.strip() for c in cells.split(",")] if cells is not None else None
     )
-    goals = [robustness.parse_goal(text, table) for text in goal_texts]
+    goals = [robustness.parse_goal(t, table.metrics, table.version) for t in goal_texts]
     plans = [  # bad parameters: before any work
         robustness.tasks(candidate, info, table, names, seeds, seed) for candidate in candidates
     ]
@@ -198,3 +198,44 @@ def _maximizes(info: ProblemInfo, candidate: Candidate) -> bool:
         return problem.sense == Sense.MAXIMIZE
     finally:
         problem.close()
+
+
+@click.command("robustness-summary")
+@click.argument(
+    "csv_paths", metavar="CSV...", nargs=-1, required=True,
+    type=click.Path(dir_okay=False, path_type=Path),
+)  # fmt: skip
+@click.option(
+    "--goal",
+    "goal_texts",
+    multiple=True,
+    metavar="METRIC>=VALUE",
+    help="A bound on a metric (as robustness --goal), checked on each engine's median over "
+    "the searches.",
+)
+@click.option(
+    "--csv",
+    "csv_path",
+    type=click.Path(dir_okay=False, path_type=Path),
+    default=None,
+    help="Write the figures as CSV here: each search's per engine, then the medians.",
+)
+def robustness_summary_command(
+    csv_paths: tuple[Path, ...], goal_texts: tuple[str, ...], csv_path: Path | None
+) -> None:
+    """Summarise several searches of one design: each CSV is one search's chosen candidate
+    over the perturbation table (robustness --csv); shows each search's whole-table figures
+    per engine and their median over the searches, against the goals. A search is one
+    chaotic trajectory: a design is judged by medians over its seeds."""
+    if csv_path is not None:
+        check_output_file(str(csv_path), "--csv", suffix=".csv")
+    tables = [search_medians.read_table(path) for path in csv_paths]
+    search_medians.check_alike(tables)
+    first = tables[0]
+    goals = [robustness.parse_goal(t, first.metrics, first.version) for t in goal_texts]
+    console.print(display.search_medians_table(tables, search_medians.medians(tables)))
+    if goals:
+        console.print(display.search_medians_verdict(tables, goals))
+    if csv_path is not None:
+        search_medians.write_medians(csv_path, tables)
+        console.print(f"wrote {csv_path}")

@@ -349,6 +349,55 @@ def robustness_table(
     return table
 
 
+def search_medians_table(tables: Sequence, medians: dict[str, dict[str, float]]) -> Table:
+    """`metaopt robustness-summary`: each search's whole-table figures per engine (a metric's
+    median, a rate's value), then per engine their median over the searches below a line."""
+    first = tables[0]
+    table = Table(title=f"{len(tables)} searches over perturbation table {first.version}: "
+                  "whole table per engine, and the median over the searches",
+                  title_justify="left")  # fmt: skip
+    for name in ("search", "candidate", "engine"):
+        table.add_column(name)
+    for metric in first.metrics:
+        table.add_column(metric if metric.startswith("fell") else f"{metric} (median)",
+                         justify="right")  # fmt: skip
+
+    def shown(figures: dict[str, float]) -> list[str]:
+        return [f"{figures[m]:.1%}" if m.startswith("fell") else f"{figures[m]:.3f}"
+                for m in first.metrics]  # fmt: skip
+
+    for search in tables:
+        for engine, figures in search.figures.items():
+            failed = f" ({search.failed[engine]} failed)" if search.failed[engine] else ""
+            table.add_row(search.source, search.candidate, engine + failed, *shown(figures))
+    table.add_section()
+    for engine, figures in medians.items():
+        table.add_row(f"median of {len(tables)}", "", engine, *shown(figures))
+    return table
+
+
+def search_medians_verdict(tables: Sequence, goals: Sequence) -> str:
+    """Which goals the medians over the searches meet per engine, and how many of the
+    searches' own candidates meet every goal on every engine."""
+    from metaopt.assessment.search_medians import medians, missed_goals
+
+    lines = [f"the median of {len(tables)} searches against the goals "
+             f"{', '.join(map(str, goals))}:"]  # fmt: skip
+    for engine, figures in medians(tables).items():
+        failed = sum(t.failed[engine] for t in tables)
+        missed = [f"{g} ({figures[g.metric]:.3g})" for g in missed_goals(figures, failed, goals)]
+        lines.append(f"  {engine}: " + (f"misses {', '.join(missed)}" if missed else
+                                        "meets all"))  # fmt: skip
+    within = [
+        t.source
+        for t in tables
+        if not any(missed_goals(f, t.failed[e], goals) for e, f in t.figures.items())
+    ]
+    lines.append(f"searches whose candidate meets every goal on every engine: {len(within)} of "
+                 f"{len(tables)}" + (f" ({', '.join(within)})" if within else ""))  # fmt: skip
+    return "\n".join(lines)
+
+
 def robustness_ranking(
     ranked: Sequence, version: str, metrics: Sequence[str], goals: Sequence = ()
 ) -> Table:

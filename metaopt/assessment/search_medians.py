@@ -1,0 +1,126 @@
+"""A search design's result over several searches: each search's chosen candidate over the
+same perturbation table (the CSV `metaopt robustness --csv` writes), summarised per engine as
+the median over the searches of each whole-table figure. A search is one chaotic trajectory,
+so a design is judged by such medians over its seeds, not by its luckiest search."""
+
+from __future__ import annotations
+
+import csv
+import math
+import statistics
+from collections.abc import Sequence
+from dataclasses import dataclass
+from pathlib import Path
+
+from metaopt.assessment.robustness import CSV_COLUMNS, WHOLE_TABLE, Goal, write_rows
+from metaopt.errors import ConfigError
+
+#: the suffixes of a metric's columns (a rate, e.g. 'fell', has one column of its own name)
+_SPREAD = ("_q25", "_q75")
+
+
+@dataclass(frozen=True)
+class SearchTable:
+    """One search's chosen candidate over a table: the whole-table figures per engine
+    (``figures[engine][metric]``: a metric's median, a rate's value) and its failed
+    evaluations per engine."""
+
+    source: str
+    candidate: str
+    version: str
+    figures: dict[str, dict[str, float]]
+    failed: dict[str, int]
+
+    @property
+    def metrics(self) -> tuple[str, ...]:
+        """The table's metrics in its column order ('speed', '|drift|', 'fell', ...)."""
+        return tuple(next(iter(self.figures.values())))
+
+
+def read_table(path: Path) -> SearchTable:
+    """The whole-table rows of the one candidate in a `metaopt robustness --csv` file;
+    ConfigError naming the file and what is wrong otherwise."""
+    try:
+        with path.open(newline="", encoding="utf-8") as handle:
+            reader = csv.DictReader(handle)
+            header = reader.fieldnames or []
+            rows = list(reader)
+    except FileNotFoundError:
+        raise ConfigError(f"{path}: no such file") from None
+    except (OSError, UnicodeDecodeError, csv.Error) as error:
+        raise ConfigError(f"{path}: cannot read it as CSV: {error}") from None
+    if list(header[: len(CSV_COLUMNS)]) != list(CSV_COLUMNS):
+        raise ConfigError(
+            f"{path}: not a robustness table (its columns start {', '.join(header[:3])}); "
+            "give the CSV `metaopt robustness --csv` writes"
+        )
+    metrics = [c.removesuffix("_median") for c in header[len(CSV_COLUMNS):]
+               if not c.endswith(_SPREAD)]  # fmt: skip
+    totals = [row for row in rows if row["cell"] == WHOLE_TABLE]
+    candidates = sorted({row["candidate"] for row in totals})
+    if len(candidates) != 1:
+        raise ConfigError(
+            f"{path}: holds {len(candidates)} candidates ({', '.join(candidates) or 'none'}); "
+            "give each search's final table, of its one chosen candidate"
+        )
+    try:
+        figures = {
+            row["engine"]: {m: float(row[m if m in row else f"{m}_median"]) for m in metrics}
+            for row in totals
+        }
+        failed = {row["engine"]: int(row["failed"]) for row in totals}
+    except (TypeError, ValueError) as error:
+        raise ConfigError(f"{path}: a whole-table value is not a number: {error}") from None
+    return SearchTable(str(path), candidates[0], totals[0]["table_version"], figures, failed)
+
+
+def check_alike(tables: Sequence[SearchTable]) -> None:
+    """ConfigError unless every table has the same version, engines and metrics: medians
+    over searches compare like with like."""
+    first = tables[0]
+    for table in tables[1:]:
+        for what, mine, theirs in (
+            ("table version", first.version, table.version),
+            ("engines", sorted(first.figures), sorted(table.figures)),
+            ("metrics", first.metrics, table.metrics),
+        ):
+            if mine != theirs:
+                raise ConfigError(
+                    f"{table.source} has {what} {theirs}, {first.source} {mine}: give tables "
+                    "of one perturbation table version, on the same engines"
+                )
+
+
+def medians(tables: Sequence[SearchTable]) -> dict[str, dict[str, float]]:
+    """Per engine and metric, the median over the searches (NaN where none measured it)."""
+    result: dict[str, dict[str, float]] = {}
+    for engine in tables[0].figures:
+        result[engine] = {}
+        for metric in tables[0].metrics:
+            values = [t.figures[engine][metric] for t in tables]
+            values = [v for v in values if not math.isnan(v)]
+            result[engine][metric] = statistics.median(values) if values else math.nan
+    return result
+
+
+def missed_goals(figures: dict[str, float], failed: int, goals: Sequence[Goal]) -> list[Goal]:
+    """The goals one engine's figures miss (every goal, where an evaluation failed)."""
+    return [goal for goal in goals if goal.margin_of(figures[goal.metric], failed) < 0]
+
+
+def write_medians(path: Path, tables: Sequence[SearchTable]) -> None:
+    """One row per search and engine, then one per engine for the median over the searches
+    (search 'median of N'). Written whole or not at all."""
+    metrics = tables[0].metrics
+    rows = [
+        [t.source, t.candidate, engine, t.failed[engine], *(figures[m] for m in metrics)]
+        for t in tables
+        for engine, figures in t.figures.items()
+    ]
+    total_failed = {e: sum(t.failed[e] for t in tables) for e in tables[0].figures}
+    rows += [
+        [f"median of {len(tables)}", "", engine, total_failed[engine],
+         *(figures[m] for m in metrics)]
+        for engine, figures in medians(tables).items()
+    ]  # fmt: skip
+    write_rows(path, ["search", "candidate", "engine", "failed", *metrics], rows)

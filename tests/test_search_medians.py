@@ -1,0 +1,118 @@
+"""`metaopt robustness-summary`: several searches' tables (each search's chosen candidate over
+the perturbation table, as `metaopt robustness --csv` writes it) summarised per engine as the
+median over the searches, checked against goals; bad input is one clear line."""
+
+from __future__ import annotations
+
+import csv
+import statistics
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from metaopt.assessment.candidates import Candidate
+from metaopt.assessment.robustness import CellResult, PerturbationTable, whole_table, write_csv
+from tests.conftest import metaopt_cli
+
+TABLE = PerturbationTable("t-1", (), ("speed", "|drift|", "fell", "flight"))
+GOALS = ("--goal", "speed>=0.44", "--goal", "fell<=0.05", "--goal", "|drift|<=0.3")
+
+
+def _search(path: Path, label: str, speeds: dict[str, list[float]], falls: int = 0,
+            table: PerturbationTable = TABLE, failed: int = 0) -> None:  # fmt: skip
+    """A search's table over two cells: ``speeds`` per engine (half in each cell), drift of a
+    tenth of the speed, the first ``falls`` episodes on 'ode' fallen."""
+    results = []
+    for engine, values in speeds.items():
+        samples = [
+            {"speed": v, "drift": -v / 10, "fell": float(engine == "ode" and i < falls),
+             "flight": 0.01} for i, v in enumerate(values)
+        ]  # fmt: skip
+        half = len(samples) // 2
+        results += [CellResult("nominal", engine, samples[:half], 0, [1.0] * half),
+                    CellResult("push", engine, samples[half:], failed, [1.0] * half)]  # fmt: skip
+    write_csv(
+        path, table, [(Candidate(label, "p", {}, np.zeros(1)), [*results, *whole_table(results)])]
+    )
+
+
+def _rows(path: Path) -> list[dict[str, str]]:
+    with path.open(newline="") as handle:
+        return list(csv.DictReader(handle))
+
+
+def test_the_summary_is_the_median_over_the_searches_of_each_whole_table_figure(
+    tmp_path: Path,
+) -> None:
+    speeds = {
+        "s1.csv": {"mujoco": [0.5, 0.6, 0.7, 0.8], "ode": [0.3, 0.4, 0.5, 0.6]},
+        "s2.csv": {"mujoco": [0.4, 0.4, 0.5, 0.5], "ode": [0.5, 0.5, 0.5, 0.5]},
+        "s3.csv": {"mujoco": [0.2, 0.3, 0.3, 0.9], "ode": [0.6, 0.7, 0.8, 0.9]},
+    }
+    falls = {"s1.csv": 0, "s2.csv": 1, "s3.csv": 2}
+    for name, per_engine in speeds.items():
+        _search(tmp_path / name, f"run {name[1]}", per_engine, falls[name])
+    done = metaopt_cli("robustness-summary", *speeds, *GOALS, "--csv", "out.csv", cwd=tmp_path)
+    assert done.returncode == 0, done.stderr
+    rows = _rows(tmp_path / "out.csv")
+    medians = {r["engine"]: r for r in rows if r["search"] == "median of 3"}
+    for engine in ("mujoco", "ode"):
+        per_search = [statistics.median(s[engine]) for s in speeds.values()]
+        assert float(medians[engine]["speed"]) == pytest.approx(statistics.median(per_search))
+        drift = [statistics.median(v / 10 for v in s[engine]) for s in speeds.values()]
+        assert float(medians[engine]["|drift|"]) == pytest.approx(statistics.median(drift))
+    # ode's fall rates are 0, 1/4 and 2/4: their median is 1/4
+    assert float(medians["ode"]["fell"]) == pytest.approx(0.25)
+    assert [(r["search"], r["engine"]) for r in rows[:2]] == [("s1.csv", "mujoco"),
+                                                              ("s1.csv", "ode")]  # fmt: skip
+    # mujoco's medians: speeds 0.65, 0.45, 0.3 -> 0.45; ode: 0.45, 0.5, 0.75 -> 0.5, falls 25 %
+    assert "mujoco: meets all" in done.stdout
+    assert "ode: misses fell<=0.05 (0.25)" in done.stdout
+    # s1 meets every goal on both engines; s2 falls on ode; s3 is slow on mujoco
+    assert "meets every goal on every engine: 1 of 3 (s1.csv)" in done.stdout
+
+
+@pytest.mark.parametrize(
+    ("make", "message"),
+    [
+        (lambda d: (d / "b.csv").write_text("a,b\n1,2\n"), "b.csv: not a robustness table"),
+        (lambda d: _search(d / "b.csv", "run 2", {"mujoco": [0.5, 0.5]},
+                           table=PerturbationTable("t-2", (), TABLE.metrics)),
+         "b.csv has table version t-2, a.csv t-1"),
+        (lambda d: _search(d / "b.csv", "run 2", {"ode": [0.5, 0.5]}),
+         "b.csv has engines ['ode'], a.csv ['mujoco']"),
+        (lambda d: None, "b.csv: no such file"),
+    ],
+    ids=["not a robustness table", "another version", "other engines", "missing"],
+)  # fmt: skip
+def test_unlike_or_bad_tables_are_one_clear_error(tmp_path: Path, make, message: str) -> None:
+    _search(tmp_path / "a.csv", "run 1", {"mujoco": [0.5, 0.5]})
+    make(tmp_path)
+    done = metaopt_cli("robustness-summary", "a.csv", "b.csv", "--csv", "out.csv", cwd=tmp_path)
+    assert done.returncode == 2, done.stdout
+    assert "Traceback" not in done.stderr and message in done.stderr
+    assert not (tmp_path / "out.csv").exists()
+
+
+def test_a_table_of_several_candidates_is_refused(tmp_path: Path) -> None:
+    """A race's table ranks several candidates; a search's result is its one chosen."""
+    rows = [CellResult("nominal", "mujoco", [{"speed": 0.5, "drift": 0.0, "fell": 0.0,
+                                              "flight": 0.0}], 0, [1.0])]  # fmt: skip
+    write_csv(tmp_path / "race.csv", TABLE, [
+        (Candidate(label, "p", {}, np.zeros(1)), [*rows, *whole_table(rows)])
+        for label in ("run 1 candidate 3", "run 2 candidate 7")
+    ])  # fmt: skip
+    done = metaopt_cli("robustness-summary", "race.csv", cwd=tmp_path)
+    assert done.returncode == 2
+    assert "race.csv: holds 2 candidates (run 1 candidate 3, run 2 candidate 7)" in done.stderr
+
+
+def test_a_failed_evaluation_misses_every_goal_on_its_engine(tmp_path: Path) -> None:
+    for name in ("s1.csv", "s2.csv"):
+        _search(tmp_path / name, name, {"mujoco": [0.5, 0.5]}, failed=int(name == "s2.csv"))
+    done = metaopt_cli("robustness-summary", "s1.csv", "s2.csv", "--goal", "speed>=0.44",
+                       cwd=tmp_path)  # fmt: skip
+    assert done.returncode == 0, done.stderr
+    assert "mujoco: misses speed>=0.44" in done.stdout
+    assert "mujoco (1 failed)" in done.stdout
