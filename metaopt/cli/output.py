@@ -8,7 +8,7 @@ import json
 import os
 import sys
 import tempfile
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from contextlib import contextmanager
 from pathlib import Path
 from typing import Any, TextIO
@@ -65,6 +65,13 @@ def _check_writable(folder: Path, option: str, path: Path | str) -> None:
             pass
     except OSError as error:
         raise ConfigError(f"{option} {path}: cannot write in {folder} ({error.strerror})") from None
+
+
+def output_file_option(flag: str, dest: str, help: str) -> Callable:
+    """A click option naming a file a command writes (checked by check_output_file)."""
+    return click.option(
+        flag, dest, type=click.Path(dir_okay=False, path_type=Path), default=None, help=help
+    )
 
 
 @contextmanager

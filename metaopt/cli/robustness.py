@@ -20,7 +20,7 @@ from metaopt.cli.common import (
     scheduling_options,
 )
 from metaopt.cli.compare import MAX_SEEDS
-from metaopt.cli.output import check_output_file
+from metaopt.cli.output import check_output_file, output_file_option
 from metaopt.errors import ConfigError, SettingWarning
 from metaopt.physics import engine_names
 from metaopt.plugins import registry
@@ -63,28 +63,22 @@ from metaopt.settings import parse_problem_settings
     metavar="NAME=VALUE",
     help="Change one of the candidate's problem parameters first.",
 )
-@click.option(
+@output_file_option(
     "--csv",
     "csv_path",
-    type=click.Path(dir_okay=False, path_type=Path),
-    default=None,
-    help="Write the table (every candidate's) as CSV here.",
+    "Write the table (every candidate's) as CSV here.",
 )
-@click.option(
+@output_file_option(
     "--ranking",
     "ranking_path",
-    type=click.Path(dir_okay=False, path_type=Path),
-    default=None,
-    help="Write the ranking as CSV here: rank, target (RUN:CANDIDATE or NAME, to name it to "
+    "Write the ranking as CSV here: rank, target (RUN:CANDIDATE or NAME, to name it to "
     "another command), candidate, goals missed, goal margin, whether it meets the goals, "
     "score.",
 )
-@click.option(
+@output_file_option(
     "--figure",
     "figure_path",
-    type=click.Path(dir_okay=False, path_type=Path),
-    default=None,
-    help="Draw speed and fall rate per perturbation (PNG) here, of the best-ranked candidate.",
+    "Draw speed and fall rate per perturbation (PNG) here, of the best-ranked candidate.",
 )
 @click.option(
     "--goal",
@@ -213,12 +207,10 @@ def _maximizes(info: ProblemInfo, candidate: Candidate) -> bool:
     help="A bound on a metric (as robustness --goal), checked on each engine's median over "
     "the searches.",
 )
-@click.option(
+@output_file_option(
     "--csv",
     "csv_path",
-    type=click.Path(dir_okay=False, path_type=Path),
-    default=None,
-    help="Write the figures as CSV here: each search's per engine, then the medians.",
+    "Write the figures as CSV here: each search's per engine, then the medians.",
 )
 def robustness_summary_command(
     csv_paths: tuple[Path, ...], goal_texts: tuple[str, ...], csv_path: Path | None
