@@ -32,6 +32,9 @@
 # Then the chosen candidate over the whole standard table on the standard seeds (drawn from 0).
 # Knobs for the pilots after the twelfth search (docs/robustness/searches.md): TOP=10 (the
 # re-check takes each stage 1b's 10 best), STAGE1_ENGINE=ode (stage 1 on ODE).
+# STAGE1B_SET="NAME=VALUE ..." adds problem settings to every stage 1b: the pilots after the
+# thirteenth (docs/robustness/searches.md) ran STAGE1B_SET=worlds=standard (sampled worlds),
+# STAGE1B_SET=flight_allowed=0.02 (a flight margin) and both.
 # This is the thirteenth search, run after commit d228dc7 (nao-walk charges the flight
 # penalty past engine_cap). STAGE1B_START=all gives the twelfth's stage 1b, from all four
 # stage-1 bests; the twelfth (commit f1b7010) and the thirteenth's pilot ran before d228dc7.
@@ -41,11 +44,13 @@
 # script at commit 5ed7043, the seventh at 3c42de4, the sixth at 6e1fe34, the fifth at
 # 3c8db53, the fourth at ff6956d, the third at abce00d, the second at 9d03e62.
 set -euo pipefail
-seed=${1:?usage: [STAGE1B_BUDGET=N TOP=K STAGE1_ENGINE=E STAGE1B_START=all|raced] robust-walk-search.sh SEED}
+seed=${1:?usage: [STAGE1B_BUDGET=N TOP=K STAGE1_ENGINE=E STAGE1B_START=all|raced STAGE1B_SET="NAME=VALUE ..."] robust-walk-search.sh SEED}
 stage1b_budget=${STAGE1B_BUDGET:-600}
 top=${TOP:-3}
 stage1_engine=${STAGE1_ENGINE:-mujoco}
 stage1b_start=${STAGE1B_START:-raced}
+stage1b_set=()
+for pair in ${STAGE1B_SET:-}; do stage1b_set+=(--set "$pair"); done
 db=robust-walk-s$seed.db
 if [ -e "$db" ]; then echo "$db exists: the stages number their runs from 1" >&2; exit 2; fi
 walk=(--set controller=steered)
@@ -71,7 +76,8 @@ for p in 1 2 3; do
     metaopt run -o hs -p nao-walk --budget "$stage1b_budget" --seed $((10 * seed + p)) \
         "${starts[@]}" "${walk[@]}" --set flight_penalty=50 \
         --set backend=mujoco+pybullet+ode --set engine_score=mean --set engine_cap=6 \
-        --set noise=0.1 --set fitness=progress --workers 2 --batch 2 --db "$db"
+        --set noise=0.1 --set fitness=progress ${stage1b_set[@]+"${stage1b_set[@]}"} \
+        --workers 2 --batch 2 --db "$db"
     run=$((run + 1))
     finals+=("$run")
 done
