@@ -109,10 +109,13 @@ def test_a_table_of_several_candidates_is_refused(tmp_path: Path) -> None:
 
 
 def test_a_failed_evaluation_misses_every_goal_on_its_engine(tmp_path: Path) -> None:
+    """Both searches walk 0.5 m/s without a fall, within both goals; one evaluation of s2
+    failed, so the medians miss both (a failure counts as outside every bound)."""
     for name in ("s1.csv", "s2.csv"):
         _search(tmp_path / name, name, {"mujoco": [0.5, 0.5]}, failed=int(name == "s2.csv"))
     done = metaopt_cli("robustness-summary", "s1.csv", "s2.csv", "--goal", "speed>=0.44",
-                       cwd=tmp_path)  # fmt: skip
+                       "--goal", "fell<=0.05", cwd=tmp_path)  # fmt: skip
     assert done.returncode == 0, done.stderr
-    assert "mujoco: misses speed>=0.44" in done.stdout
+    assert "mujoco: misses speed>=0.44 (0.5), fell<=0.05 (0)" in done.stdout
     assert "mujoco (1 failed)" in done.stdout
+    assert "meets every goal on every engine: 1 of 2 (s1.csv)" in done.stdout

@@ -91,16 +91,28 @@ def check_alike(tables: Sequence[SearchTable]) -> None:
                 )
 
 
-def medians(tables: Sequence[SearchTable]) -> dict[str, dict[str, float]]:
-    """Per engine and metric, the median over the searches (NaN where none measured it)."""
-    result: dict[str, dict[str, float]] = {}
+@dataclass(frozen=True)
+class Medians:
+    """Per engine, each metric's median over the searches (NaN where none measured it), and
+    the failed evaluations of all the searches together."""
+
+    count: int
+    figures: dict[str, dict[str, float]]
+    failed: dict[str, int]
+
+
+def medians(tables: Sequence[SearchTable]) -> Medians:
+    """The medians over the searches, computed once for the display, the verdict and the
+    CSV."""
+    figures: dict[str, dict[str, float]] = {}
     for engine in tables[0].figures:
-        result[engine] = {}
+        figures[engine] = {}
         for metric in tables[0].metrics:
             values = [t.figures[engine][metric] for t in tables]
             values = [v for v in values if not math.isnan(v)]
-            result[engine][metric] = statistics.median(values) if values else math.nan
-    return result
+            figures[engine][metric] = statistics.median(values) if values else math.nan
+    failed = {engine: sum(t.failed[engine] for t in tables) for engine in figures}
+    return Medians(len(tables), figures, failed)
 
 
 def missed_goals(figures: dict[str, float], failed: int, goals: Sequence[Goal]) -> list[Goal]:
@@ -108,7 +120,7 @@ def missed_goals(figures: dict[str, float], failed: int, goals: Sequence[Goal]) 
     return [goal for goal in goals if goal.margin_of(figures[goal.metric], failed) < 0]
 
 
-def write_medians(path: Path, tables: Sequence[SearchTable]) -> None:
+def write_medians(path: Path, tables: Sequence[SearchTable], summary: Medians) -> None:
     """One row per search and engine, then one per engine for the median over the searches
     (search 'median of N'). Written whole or not at all."""
     metrics = tables[0].metrics
@@ -117,10 +129,9 @@ def write_medians(path: Path, tables: Sequence[SearchTable]) -> None:
         for t in tables
         for engine, figures in t.figures.items()
     ]
-    total_failed = {e: sum(t.failed[e] for t in tables) for e in tables[0].figures}
     rows += [
-        [f"median of {len(tables)}", "", engine, total_failed[engine],
+        [f"median of {summary.count}", "", engine, summary.failed[engine],
          *(figures[m] for m in metrics)]
-        for engine, figures in medians(tables).items()
+        for engine, figures in summary.figures.items()
     ]  # fmt: skip
     write_rows(path, ["search", "candidate", "engine", "failed", *metrics], rows)

@@ -225,9 +225,10 @@ def robustness_summary_command(
     search_medians.check_alike(tables)
     first = tables[0]
     goals = [robustness.parse_goal(t, first.metrics, first.version) for t in goal_texts]
-    console.print(display.search_medians_table(tables, search_medians.medians(tables)))
+    summary = search_medians.medians(tables)
+    console.print(display.search_medians_table(tables, summary))
     if goals:
-        console.print(display.search_medians_verdict(tables, goals))
+        console.print(display.search_medians_verdict(tables, summary, goals))
     if csv_path is not None:
-        search_medians.write_medians(csv_path, tables)
+        search_medians.write_medians(csv_path, tables, summary)
         console.print(f"wrote {csv_path}")

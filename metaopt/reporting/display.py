@@ -23,6 +23,7 @@ from rich.progress import (
 from rich.table import Table
 
 from metaopt.assessment.replay import Replay, ReplaySource, SeedReplay
+from metaopt.assessment.search_medians import Medians, missed_goals
 from metaopt.params import Param
 from metaopt.run_loop import RunResult
 from metaopt.storage.run_store import CandidateRecord, RunRecord
@@ -349,7 +350,7 @@ def robustness_table(
     return table
 
 
-def search_medians_table(tables: Sequence, medians: dict[str, dict[str, float]]) -> Table:
+def search_medians_table(tables: Sequence, summary: Medians) -> Table:
     """`metaopt robustness-summary`: each search's whole-table figures per engine (a metric's
     median, a rate's value), then per engine their median over the searches below a line."""
     first = tables[0]
@@ -371,23 +372,19 @@ def search_medians_table(tables: Sequence, medians: dict[str, dict[str, float]])
             failed = f" ({search.failed[engine]} failed)" if search.failed[engine] else ""
             table.add_row(search.source, search.candidate, engine + failed, *shown(figures))
     table.add_section()
-    for engine, figures in medians.items():
-        table.add_row(f"median of {len(tables)}", "", engine, *shown(figures))
+    for engine, figures in summary.figures.items():
+        table.add_row(f"median of {summary.count}", "", engine, *shown(figures))
     return table
 
 
-def search_medians_verdict(tables: Sequence, goals: Sequence) -> str:
+def search_medians_verdict(tables: Sequence, summary: Medians, goals: Sequence) -> str:
     """Which goals the medians over the searches meet per engine, and how many of the
     searches' own candidates meet every goal on every engine."""
-    from metaopt.assessment.search_medians import medians, missed_goals
-
-    lines = [f"the median of {len(tables)} searches against the goals "
+    lines = [f"the median of {summary.count} searches against the goals "
              f"{', '.join(map(str, goals))}:"]  # fmt: skip
-    for engine, figures in medians(tables).items():
-        failed = sum(t.failed[engine] for t in tables)
-        missed = [f"{g} ({figures[g.metric]:.3g})" for g in missed_goals(figures, failed, goals)]
-        lines.append(f"  {engine}: " + (f"misses {', '.join(missed)}" if missed else
-                                        "meets all"))  # fmt: skip
+    for engine, figures in summary.figures.items():
+        missed = missed_goals(figures, summary.failed[engine], goals)
+        lines.append(_verdict_line(engine, [f"{g} ({figures[g.metric]:.3g})" for g in missed]))
     within = [
         t.source
         for t in tables
@@ -440,9 +437,13 @@ def goal_verdict(label: str, totals: Sequence, goals: Sequence) -> str:
             for goal in goals
             if goal.margin(total) < 0
         ]
-        lines.append(f"  {total.engine}: " + (f"misses {', '.join(missed)}" if missed else
-                                               "meets all"))  # fmt: skip
+        lines.append(_verdict_line(total.engine, missed))
     return "\n".join(lines)
+
+
+def _verdict_line(engine: str, missed: Sequence[str]) -> str:
+    """'  mujoco: meets all' or '  ode: misses speed>=0.44 (0.347)'."""
+    return f"  {engine}: " + (f"misses {', '.join(missed)}" if missed else "meets all")
 
 
 def replay_seeds_table(replay: SeedReplay) -> Table:
