@@ -26,6 +26,7 @@ from metaopt.executors.base import EvaluationTask, Executor, Outcome
 from metaopt.params import resolve
 from metaopt.problem import ProblemInfo
 from metaopt.seeding import EvaluationSeeds
+from metaopt.storage.whole_file import written_whole
 
 if TYPE_CHECKING:
     from matplotlib.figure import Figure
@@ -320,12 +321,10 @@ def write_ranking(path: Path, ranked: Sequence[Ranked]) -> None:
 
 def write_rows(path: Path, header: list[str], rows: list[list[Any]]) -> None:
     """A CSV written whole or not at all (a killed run leaves no half-written file)."""
-    partial = path.with_name(path.name + ".partial")
-    with partial.open("w", newline="", encoding="utf-8") as handle:
+    with written_whole(path) as handle:
         writer = csv.writer(handle)
         writer.writerow(header)
         writer.writerows(rows)
-    partial.replace(path)
 
 
 def figure(

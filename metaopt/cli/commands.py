@@ -24,7 +24,7 @@ from metaopt.cli.common import (
 )
 from metaopt.cli.compare import compare
 from metaopt.cli.new import new
-from metaopt.cli.output import check_output_file, format_option, print_records, written_whole
+from metaopt.cli.output import check_output_file, format_option, print_records
 from metaopt.cli.report import report, write_replay_video
 from metaopt.cli.robustness import robustness_command, robustness_summary_command
 from metaopt.errors import MetaoptError, SettingWarning
@@ -44,6 +44,7 @@ from metaopt.settings import parse_problem_settings, split_settings
 from metaopt.storage.experiment_store import experiment_names
 from metaopt.storage.export import FORMATS, export_run
 from metaopt.storage.run_store import RunStore
+from metaopt.storage.whole_file import written_whole
 
 #: click 8.2+ raises this for a group called with no arguments (older versions exit at once).
 _NO_ARGS_IS_HELP = getattr(click.exceptions, "NoArgsIsHelpError", ())

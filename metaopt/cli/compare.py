@@ -19,7 +19,7 @@ from metaopt.cli.common import (
     require_store,
     scheduling_options,
 )
-from metaopt.cli.output import OUTPUT_FORMATS, check_output_file, written_whole
+from metaopt.cli.output import OUTPUT_FORMATS, check_output_file
 from metaopt.comparison.experiment import (
     Experiment,
     experiment_from_flags,
@@ -36,6 +36,7 @@ from metaopt.reporting.result_table import ResultTable
 from metaopt.run_loop import RunInterrupted
 from metaopt.storage.experiment_store import ExperimentStore
 from metaopt.storage.export import dump_json
+from metaopt.storage.whole_file import written_whole
 
 DEFAULT_SEEDS = 5
 #: More seeds than this is a typing slip: a compare runs one run per seed and cell.

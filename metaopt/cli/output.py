@@ -1,5 +1,5 @@
 """What commands write: the --format option, records as CSV or JSON, and output paths checked
-before any work and written whole or not at all."""
+before any work (storage.whole_file then writes them whole or not at all)."""
 
 from __future__ import annotations
 
@@ -8,10 +8,9 @@ import json
 import os
 import sys
 import tempfile
-from collections.abc import Callable, Iterator
-from contextlib import contextmanager
+from collections.abc import Callable
 from pathlib import Path
-from typing import Any, TextIO
+from typing import Any
 
 import click
 
@@ -72,23 +71,6 @@ def output_file_option(flag: str, dest: str, help: str) -> Callable:
     return click.option(
         flag, dest, type=click.Path(dir_okay=False, path_type=Path), default=None, help=help
     )
-
-
-@contextmanager
-def written_whole(path: Path) -> Iterator[TextIO]:
-    """A text handle whose content lands at ``path`` only when the block succeeds: written to
-    a temporary file beside it and renamed, so a failure never leaves a half-written file."""
-    descriptor, temporary = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.")
-    umask = os.umask(0)
-    os.umask(umask)
-    os.chmod(temporary, 0o666 & ~umask)  # as open() would make it, not mkstemp's 0600
-    try:
-        with open(descriptor, "w", newline="") as handle:
-            yield handle
-        os.replace(temporary, path)
-    except BaseException:
-        Path(temporary).unlink(missing_ok=True)
-        raise
 
 
 def print_records(records: list[dict[str, Any]] | dict[str, Any], fmt: str) -> None:

@@ -13,6 +13,7 @@ from matplotlib.axes import Axes
 from matplotlib.figure import Figure
 
 from metaopt.reporting.convergence import Band, Convergence
+from metaopt.storage.whole_file import written_whole
 
 #: Resolution of saved figures, dots per inch (6.4 x 4.8 in -> 640 x 480 px).
 DPI = 100
@@ -123,6 +124,7 @@ def _focus(ax: Axes, curves: list[np.ndarray]) -> None:
 
 
 def save_figure(figure: Figure, path: Path) -> Path:
-    """Write figure as a PNG at DPI; returns path."""
-    figure.savefig(path, dpi=DPI)
+    """Write figure as a PNG at DPI, whole or not at all; returns path."""
+    with written_whole(path, binary=True) as handle:
+        figure.savefig(handle, dpi=DPI, format="png")
     return path

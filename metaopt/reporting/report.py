@@ -22,6 +22,7 @@ from metaopt.reporting.convergence import best_so_far_band, group_runs, mean_ban
 from metaopt.reporting.plots import bands_figure, convergence_figure, save_figure
 from metaopt.storage.experiment_store import ExperimentStore
 from metaopt.storage.run_store import RunRecord, RunStore
+from metaopt.storage.whole_file import written_whole
 
 
 @dataclass
@@ -177,7 +178,8 @@ def write_experiment_figures(
             "",
         ]
     index = out_dir / "index.md"
-    index.write_text("\n".join(lines))
+    with written_whole(index) as handle:
+        handle.write("\n".join(lines))
     return [*paths, index]
 
 

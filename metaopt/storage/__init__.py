@@ -1,3 +1,3 @@
 """What is kept: every run and evaluation in an embedded SQLite run store (run_store), which
-runs make up an experiment's cells (experiment_store), and a run's evaluations written out as
-CSV or JSON (export)."""
+runs make up an experiment's cells (experiment_store), a run's evaluations written out as
+CSV or JSON (export), and any output file written whole or not at all (whole_file)."""

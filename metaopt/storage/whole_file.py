@@ -1,0 +1,32 @@
+"""Files written whole or not at all: a killed run or a failed write never leaves a
+half-written CSV, figure or index where a reader would take it for a finished one."""
+
+from __future__ import annotations
+
+import os
+import tempfile
+from collections.abc import Iterator
+from contextlib import contextmanager
+from pathlib import Path
+from typing import IO
+
+
+@contextmanager
+def written_whole(path: Path, binary: bool = False) -> Iterator[IO]:
+    """A handle (text, or bytes with ``binary``) whose content lands at ``path`` only when the
+    block succeeds: written to a hidden temporary file beside it, then renamed over it."""
+    descriptor, temporary = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.")
+    umask = os.umask(0)
+    os.umask(umask)
+    os.chmod(temporary, 0o666 & ~umask)  # as open() would make it, not mkstemp's 0600
+    try:
+        if binary:
+            with open(descriptor, "wb") as handle:
+                yield handle
+        else:
+            with open(descriptor, "w", newline="", encoding="utf-8") as handle:
+                yield handle
+        os.replace(temporary, path)
+    except BaseException:
+        Path(temporary).unlink(missing_ok=True)
+        raise
