@@ -432,10 +432,11 @@ def goal_verdict(label: str, totals: Sequence, goals: Sequence) -> str:
     'mujoco: meets all', 'pybullet: misses fell<=0.05 (0.073)'."""
     lines = [f"{label} against the goals {', '.join(map(str, goals))}:"]
     for total in totals:
+        figures = {goal: total.summary(goal.metric)[0] for goal in goals}
         missed = [
-            f"{goal} ({total.summary(goal.metric)[0]:.3g})"
-            for goal in goals
-            if goal.margin(total) < 0
+            f"{goal} ({value:.3g})"
+            for goal, value in figures.items()
+            if goal.margin_of(value, total.failed) < 0
         ]
         lines.append(_verdict_line(total.engine, missed))
     return "\n".join(lines)
