@@ -153,6 +153,8 @@ def _snapshot(folder) -> dict:
         (["replay", "1", "--video", "w.gif"], ["only .mp4 files"]),
         (["replay", "1", "--video", "newdir/"], ["is a directory"]),
         (["export", "1", "--output", "/nonexistent/dir/x.csv"], ["does not exist"]),
+        (["robustness", "hs_walk", "--csv", "newdir/"], ["--csv newdir/ is a directory"]),
+        (["robustness", "hs_walk", "--figure", "r.jpg"], ["--figure r.jpg", "only .png"]),
         (
             ["compare", "-o", "hs", "-p", "sphere", "--csv", "/nonexistent/dir/x.csv"],
             ["--csv", "does not exist"],

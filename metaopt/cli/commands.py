@@ -6,6 +6,7 @@ from __future__ import annotations
 import secrets
 import sys
 import warnings
+from pathlib import Path
 
 import click
 from rich.markup import escape
@@ -24,7 +25,7 @@ from metaopt.cli.common import (
 )
 from metaopt.cli.compare import compare
 from metaopt.cli.new import new
-from metaopt.cli.output import check_output_file, format_option, print_records
+from metaopt.cli.output import format_option, output_file_option, print_records
 from metaopt.cli.report import report, write_replay_video
 from metaopt.cli.robustness import robustness_command, robustness_summary_command
 from metaopt.errors import MetaoptError, SettingWarning
@@ -375,18 +376,17 @@ def show_command(run_id: str, fmt: str, db_path: str) -> None:
 @main.command("export")
 @click.argument("run_id")
 @click.option("--format", "fmt", type=click.Choice(FORMATS), default="csv", show_default=True)
-@click.option("--output", type=click.Path(dir_okay=False), default=None, help="File [stdout].")
+@output_file_option("--output", "output", "File [stdout].")
 @db_option
-def export_command(run_id: str, fmt: str, output: str | None, db_path: str) -> None:
+def export_command(run_id: str, fmt: str, output: Path | None, db_path: str) -> None:
     """Write a run's evaluations as CSV or JSON."""
-    target = None if output is None else check_output_file(output, "--output")
     require_store(db_path)
     with RunStore(db_path) as store:
         store.run(run_id)  # an unknown run is an error before any file is touched
-        if target is None:
+        if output is None:
             export_run(store, run_id, fmt, sys.stdout)
         else:
-            with written_whole(target) as handle:
+            with written_whole(output) as handle:
                 count = export_run(store, run_id, fmt, handle)
             errors.print(f"wrote {count} evaluations to {output}")
 
@@ -396,8 +396,7 @@ def export_command(run_id: str, fmt: str, output: str | None, db_path: str) -> N
 @click.option("--backend", default=None, help="Physics engine to replay on [the run's own].")
 @click.option("--set", "settings", multiple=True, metavar="NAME=VALUE",
               help="Change a problem parameter for the replay.")  # fmt: skip
-@click.option("--video", type=click.Path(dir_okay=False), default=None,
-              help="Also film the candidate into this MP4 file.")  # fmt: skip
+@output_file_option("--video", "video", "Also film the candidate into this MP4 file.", ".mp4")
 @click.option("--seeds", type=click.IntRange(min=1), default=None,
               help="Re-evaluate with this many fresh seeds: median, IQR, fall rate.")  # fmt: skip
 @click.option("--seed", type=click.IntRange(min=0, max=MAX_INT64), default=0, show_default=True,
@@ -405,7 +404,7 @@ def export_command(run_id: str, fmt: str, output: str | None, db_path: str) -> N
 @scheduling_options
 @db_option
 def replay_command(
-    target: str, backend: str | None, settings: tuple[str, ...], video: str | None,
+    target: str, backend: str | None, settings: tuple[str, ...], video: Path | None,
     seeds: int | None, seed: int, executor: str | None, workers: int | None,
     scheduler: str | None, db_path: str,
 ) -> None:  # fmt: skip
@@ -413,8 +412,6 @@ def replay_command(
     robustness --top` names them) or a problem's stored candidate (NAME, e.g. a nao-walk gait),
     and compare with what was stored (with --seeds: a statistic over fresh seeds, for noisy
     problems)."""
-    if video is not None:
-        check_output_file(video, "--video", suffix=".mp4")
     plugins = registry()
     source = find_source(target, plugins, db_path)
     problem_info = plugins.problem(source.problem)

@@ -19,7 +19,7 @@ from metaopt.cli.common import (
     require_store,
     scheduling_options,
 )
-from metaopt.cli.output import OUTPUT_FORMATS, check_output_file
+from metaopt.cli.output import OUTPUT_FORMATS, output_file_option
 from metaopt.comparison.experiment import (
     Experiment,
     experiment_from_flags,
@@ -82,19 +82,9 @@ MAX_SEEDS = 10_000
 @click.option(
     "--transfer", is_flag=True, help="Also replay each run's best on the other physics engines."
 )
-@click.option(
-    "--csv",
-    "csv_path",
-    type=click.Path(dir_okay=False),
-    default=None,
-    help="Write the comparison table as CSV.",
-)
-@click.option(
-    "--transfer-csv",
-    "transfer_csv_path",
-    type=click.Path(dir_okay=False),
-    default=None,
-    help="Write the transfer table as CSV (with --transfer).",
+@output_file_option("--csv", "csv_path", "Write the comparison table as CSV.")
+@output_file_option(
+    "--transfer-csv", "transfer_csv_path", "Write the transfer table as CSV (with --transfer)."
 )
 @click.option(
     "--format",
@@ -145,8 +135,8 @@ def compare(
     target: float | None,
     name: str | None,
     transfer: bool,
-    csv_path: str | None,
-    transfer_csv_path: str | None,
+    csv_path: Path | None,
+    transfer_csv_path: Path | None,
     fmt: str,
     jobs: int,
     at: int | None,
@@ -165,10 +155,6 @@ def compare(
             f"--jobs {jobs} runs whole runs side by side, each serial; --workers, --executor and "
             "--scheduler spread the evaluations of one run: use one or the other"
         )
-    outputs = {"--csv": csv_path, "--transfer-csv": transfer_csv_path}
-    for option, path in outputs.items():
-        if path is not None:  # checked before any run: a bad path must not cost the runs
-            check_output_file(path, option)
     plugins = registry()
     flags = dict(optimizers=optimizers, problem=problem, seeds=seeds, budget=budget,
                  settings=settings, target=target, name=name)  # fmt: skip
@@ -227,11 +213,11 @@ def _show_stored(
     experiment: Experiment,
     store: ExperimentStore,
     plugins: Registry,
-    csv_path: str | None,
+    csv_path: Path | None,
     fmt: str,
     at: int | None,
     transfer: bool,
-    transfer_csv_path: str | None,
+    transfer_csv_path: Path | None,
 ) -> None:
     """The comparison table (and the transfer table) of what the store holds."""
     _show(compare_cells(experiment, store, plugins, at), csv_path, fmt)
@@ -262,7 +248,7 @@ def _experiment(path: str | None, flags: dict, plugins: Registry) -> Experiment:
     )
 
 
-def _show(table: ResultTable, csv_path: str | None, fmt: str) -> None:
+def _show(table: ResultTable, csv_path: Path | None, fmt: str) -> None:
     """The table on stdout in the format asked for, and as CSV into csv_path if given."""
     if fmt == "table":
         console.print(table.to_rich())
@@ -273,6 +259,6 @@ def _show(table: ResultTable, csv_path: str | None, fmt: str) -> None:
     else:
         dump_json(table.to_records(), sys.stdout)
     if csv_path is not None:
-        with written_whole(Path(csv_path)) as handle:
+        with written_whole(csv_path) as handle:
             table.write_csv(handle)
         errors.print(f"wrote {len(table.rows)} rows to {csv_path}")

@@ -66,10 +66,15 @@ def _check_writable(folder: Path, option: str, path: Path | str) -> None:
         raise ConfigError(f"{option} {path}: cannot write in {folder} ({error.strerror})") from None
 
 
-def output_file_option(flag: str, dest: str, help: str) -> Callable:
-    """A click option naming a file a command writes (checked by check_output_file)."""
+def output_file_option(flag: str, dest: str, help: str, suffix: str | None = None) -> Callable:
+    """A click option naming a file a command writes: checked by check_output_file as the
+    command line is read, before any work, and passed on as a Path (None when not given)."""
+
+    def checked(ctx: click.Context, param: click.Parameter, value: str | None) -> Path | None:
+        return None if value is None else check_output_file(value, flag, suffix)
+
     return click.option(
-        flag, dest, type=click.Path(dir_okay=False, path_type=Path), default=None, help=help
+        flag, dest, type=click.Path(dir_okay=False), default=None, callback=checked, help=help
     )
 
 

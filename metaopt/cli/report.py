@@ -107,11 +107,11 @@ def _report_experiment(
             click.echo(f"Note ({found.setting or 'all runs'}): {found.figures.note}.", err=True)
 
 
-def write_replay_video(source: ReplaySource, overrides: dict[str, Any], path: str) -> None:
+def write_replay_video(source: ReplaySource, overrides: dict[str, Any], path: Path) -> None:
     """``metaopt replay TARGET --video PATH``: film the replayed candidate into PATH."""
     from metaopt.reporting.video import VIDEO_FPS, VIDEO_SIZE, film_candidate
 
-    frames = film_candidate(source, registry(), overrides, Path(path))
+    frames = film_candidate(source, registry(), overrides, path)
     width, height = VIDEO_SIZE
     click.echo(
         f"wrote {path}: {frames} frames, {width}x{height}, {VIDEO_FPS} fps "

@@ -20,7 +20,7 @@ from metaopt.cli.common import (
     scheduling_options,
 )
 from metaopt.cli.compare import MAX_SEEDS
-from metaopt.cli.output import check_output_file, output_file_option
+from metaopt.cli.output import output_file_option
 from metaopt.errors import ConfigError, SettingWarning
 from metaopt.physics import engine_names
 from metaopt.plugins import registry
@@ -67,6 +67,7 @@ from metaopt.settings import parse_problem_settings
     "--csv",
     "csv_path",
     "Write the table (every candidate's) as CSV here.",
+    suffix=".csv",
 )
 @output_file_option(
     "--ranking",
@@ -74,11 +75,13 @@ from metaopt.settings import parse_problem_settings
     "Write the ranking as CSV here: rank, target (RUN:CANDIDATE or NAME, to name it to "
     "another command), candidate, goals missed, goal margin, whether it meets the goals, "
     "score.",
+    suffix=".csv",
 )
 @output_file_option(
     "--figure",
     "figure_path",
     "Draw speed and fall rate per perturbation (PNG) here, of the best-ranked candidate.",
+    suffix=".png",
 )
 @click.option(
     "--goal",
@@ -101,12 +104,6 @@ def robustness_command(
     (RUN:CANDIDATE) or a stored one (e.g. a nao-walk gait). Several are ranked by their worst
     engine's mean fitness over the table (with --goal: by their margin to the goals first);
     the best is shown cell by cell, and with --goal which goals it meets."""
-    if csv_path is not None:
-        check_output_file(str(csv_path), "--csv", suffix=".csv")
-    if ranking_path is not None:
-        check_output_file(str(ranking_path), "--ranking", suffix=".csv")
-    if figure_path is not None:
-        check_output_file(str(figure_path), "--figure", suffix=".png")
     plugins = registry()
     candidates, info = _candidates(targets, top, plugins.problems, db_path)
     if info.perturbations is None:
@@ -211,6 +208,7 @@ def _maximizes(info: ProblemInfo, candidate: Candidate) -> bool:
     "--csv",
     "csv_path",
     "Write the figures as CSV here: each search's per engine, then the medians.",
+    suffix=".csv",
 )
 def robustness_summary_command(
     csv_paths: tuple[Path, ...], goal_texts: tuple[str, ...], csv_path: Path | None
@@ -219,8 +217,6 @@ def robustness_summary_command(
     over the perturbation table (robustness --csv); shows each search's whole-table figures
     per engine and their median over the searches, against the goals. A search is one
     chaotic trajectory: a design is judged by medians over its seeds."""
-    if csv_path is not None:
-        check_output_file(str(csv_path), "--csv", suffix=".csv")
     tables = [search_medians.read_table(path) for path in csv_paths]
     search_medians.check_alike(tables)
     first = tables[0]
