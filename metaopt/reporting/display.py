@@ -383,8 +383,7 @@ def search_medians_verdict(tables: Sequence, summary: Medians, goals: Sequence) 
     lines = [f"the median of {summary.count} searches against the goals "
              f"{', '.join(map(str, goals))}:"]  # fmt: skip
     for engine, figures in summary.figures.items():
-        missed = missed_goals(figures, summary.failed[engine], goals)
-        lines.append(_verdict_line(engine, [f"{g} ({figures[g.metric]:.3g})" for g in missed]))
+        lines.append(_verdict_line(engine, figures, summary.failed[engine], goals))
     within = [
         t.source
         for t in tables
@@ -432,18 +431,15 @@ def goal_verdict(label: str, totals: Sequence, goals: Sequence) -> str:
     'mujoco: meets all', 'pybullet: misses fell<=0.05 (0.073)'."""
     lines = [f"{label} against the goals {', '.join(map(str, goals))}:"]
     for total in totals:
-        figures = {goal: total.summary(goal.metric)[0] for goal in goals}
-        missed = [
-            f"{goal} ({value:.3g})"
-            for goal, value in figures.items()
-            if goal.margin_of(value, total.failed) < 0
-        ]
-        lines.append(_verdict_line(total.engine, missed))
+        figures = {goal.metric: total.summary(goal.metric)[0] for goal in goals}
+        lines.append(_verdict_line(total.engine, figures, total.failed, goals))
     return "\n".join(lines)
 
 
-def _verdict_line(engine: str, missed: Sequence[str]) -> str:
-    """'  mujoco: meets all' or '  ode: misses speed>=0.44 (0.347)'."""
+def _verdict_line(engine: str, figures: dict[str, float], failed: int, goals: Sequence) -> str:
+    """'  mujoco: meets all' or '  ode: misses speed>=0.44 (0.347)': the goals an engine's
+    figures (per metric) miss, by missed_goals."""
+    missed = [f"{g} ({figures[g.metric]:.3g})" for g in missed_goals(figures, failed, goals)]
     return f"  {engine}: " + (f"misses {', '.join(missed)}" if missed else "meets all")
 
 

@@ -19,13 +19,10 @@ def written_whole(path: Path, binary: bool = False) -> Iterator[IO]:
     umask = os.umask(0)
     os.umask(umask)
     os.chmod(temporary, 0o666 & ~umask)  # as open() would make it, not mkstemp's 0600
+    text = {} if binary else {"newline": "", "encoding": "utf-8"}
     try:
-        if binary:
-            with open(descriptor, "wb") as handle:
-                yield handle
-        else:
-            with open(descriptor, "w", newline="", encoding="utf-8") as handle:
-                yield handle
+        with open(descriptor, "wb" if binary else "w", **text) as handle:
+            yield handle
         os.replace(temporary, path)
     except BaseException:
         Path(temporary).unlink(missing_ok=True)
