@@ -44,7 +44,7 @@ def test_a_cell_scales_or_sets_the_candidates_parameters() -> None:
 def test_the_standard_table_is_versioned_and_names_the_issues_perturbations() -> None:
     info = registry().problem("nao-walk")
     assert info.perturbations is STANDARD_TABLE
-    assert STANDARD_TABLE.version == "nao-walk-1"
+    assert STANDARD_TABLE.version == "nao-walk-2"
     names = [cell.name for cell in STANDARD_TABLE.cells]
     assert names[0] == "nominal" and len(set(names)) == len(names) == 11
     assert STANDARD_TABLE.metrics == ("speed", "|drift|", "fell", "flight")
@@ -53,8 +53,9 @@ def test_the_standard_table_is_versioned_and_names_the_issues_perturbations() ->
 def test_every_cell_and_engine_uses_the_same_seeds_and_checked_parameters() -> None:
     info = registry().problem("nao-walk")
     candidate, _ = find_candidate("hs_walk", registry().problems, "none.db")
-    planned = tasks(candidate, info, STANDARD_TABLE, ("mujoco", "pybullet"), 3, seed=4)
-    assert len(planned) == 11 * 2 * 3
+    plan = tasks(candidate, info, STANDARD_TABLE, ("mujoco", "pybullet"), 3, seed=4)
+    planned = plan.tasks
+    assert len(planned) == 11 * 2 * 3 and plan.left_out == []
     seeds = {(cell, engine): [] for cell, engine, _ in planned}
     for cell, engine, task in planned:
         seeds[cell, engine].append(task.seed)
@@ -68,7 +69,7 @@ def test_every_cell_and_engine_uses_the_same_seeds_and_checked_parameters() -> N
     assert by_cell["noise 0.5"]["noise"] == 0.5 and by_cell["nominal"]["noise"] == 0.1
     # a candidate searched over sampled worlds is tried in each cell alone
     sampled = Candidate("c", "nao-walk", {**candidate.params, "worlds": "standard"}, candidate.x)
-    planned = tasks(sampled, info, STANDARD_TABLE, ("mujoco",), 1, seed=4)
+    planned = tasks(sampled, info, STANDARD_TABLE, ("mujoco",), 1, seed=4).tasks
     assert {task.params["worlds"] for _, _, task in planned} == {"none"}
     with pytest.raises(ConfigError, match="friction"):  # MuJoCo's limit is 3
         tasks(Candidate("c", "nao-walk", {**candidate.params, "friction": 2.5},
@@ -126,7 +127,7 @@ def test_robustness_command_end_to_end_and_deterministic(tmp_path: Path) -> None
     serial = metaopt_cli("robustness", *TINY, "--csv", "serial.csv", "--figure", "r.png",
                          "--goal", "speed>=5", "--goal", "fell<=1", cwd=tmp_path)  # fmt: skip
     assert serial.returncode == 0, serial.stderr
-    assert "nao-walk-1" in serial.stdout and "latency 1" in serial.stdout
+    assert "nao-walk-2" in serial.stdout and "latency 1" in serial.stdout
     # the verdict against the goals: no walk reaches 5 m/s, every one falls at most always
     assert "hs_walk against the goals speed>=5, fell<=1:" in serial.stdout
     for engine in ("mujoco", "pybullet"):
@@ -139,7 +140,7 @@ def test_robustness_command_end_to_end_and_deterministic(tmp_path: Path) -> None
     ]  # fmt: skip
     assert "whole table" in serial.stdout
     for row in rows:
-        assert row["table_version"] == "nao-walk-1" and row["candidate"] == "hs_walk"
+        assert row["table_version"] == "nao-walk-2" and row["candidate"] == "hs_walk"
         assert (row["seeds"], row["failed"]) == ("4" if row["cell"] == "whole table" else "2", "0")
         assert float(row["fell"]) in (0.0, 0.5, 1.0)
         low, median, high = (float(row[f"speed_{k}"]) for k in ("q25", "median", "q75"))
@@ -185,6 +186,49 @@ def test_the_friction_cells_change_the_friction_the_engine_holds(engine: str) ->
     else:
         assert read[1.0] == pytest.approx(info.default_friction)
         assert read[0.7] == pytest.approx(0.7 * info.default_friction)
+
+
+def test_the_friction_cells_are_left_out_where_the_friction_is_unlimited() -> None:
+    """On ODE at its default (unlimited) friction the friction cells would repeat the nominal
+    world, counted three times in the whole table: the plan leaves them out there, saying why;
+    at a finite friction (hs_walk's 1) they run on ODE too, and ODE holds the scaled one."""
+    if registry().physics_backends["ode"].unavailable:
+        pytest.skip(registry().physics_backends["ode"].unavailable)
+    info = registry().problem("nao-walk")
+    friction_cells = ["friction x0.7", "friction x1.3"]
+    for name, left_out in (("goal_walk", friction_cells), ("hs_walk", [])):
+        candidate, _ = find_candidate(name, registry().problems, "none.db")
+        plan = tasks(candidate, info, STANDARD_TABLE, ("mujoco", "ode"), 1, seed=0)
+        assert [(cell, engine) for cell, engine, _ in plan.left_out] == [
+            (cell, "ode") for cell in left_out
+        ]
+        assert all("unlimited" in reason for _, _, reason in plan.left_out)
+        ran = {(cell, engine) for cell, engine, _ in plan.tasks}
+        assert len(ran) == 2 * 11 - len(left_out)
+    scaled = info.factory(**{**plan.tasks[0][2].params, "backend": "ode", "friction_scale": 0.7})
+    try:
+        assert scaled.runner.backend.ground_friction() == pytest.approx(0.7)  # hs_walk's 1 x 0.7
+    finally:
+        scaled.close()
+
+
+def test_a_left_out_cell_is_named_and_absent_from_the_csv_and_the_whole_table(
+    tmp_path: Path,
+) -> None:
+    if registry().physics_backends["ode"].unavailable:
+        pytest.skip(registry().physics_backends["ode"].unavailable)
+    result = metaopt_cli("robustness", "goal_walk", "--engines", "ode", "--cells",
+                         "nominal,friction x0.7", "--seeds", "2", "--set", "duration=5",
+                         "--csv", "t.csv", "--figure", "t.png", cwd=tmp_path)  # fmt: skip
+    assert result.returncode == 0, result.stderr
+    assert "left out on ode (friction x0.7): its ground friction is unlimited" in " ".join(
+        result.stdout.split()
+    )
+    rows = _rows(tmp_path / "t.csv")
+    assert [(r["cell"], r["engine"], r["seeds"]) for r in rows] == [
+        ("nominal", "ode", "2"), ("whole table", "ode", "2")
+    ]  # fmt: skip
+    assert (tmp_path / "t.png").stat().st_size > 1000
 
 
 def _cells(engine_fitnesses: dict[str, list[float]], failed: int = 0) -> list[CellResult]:

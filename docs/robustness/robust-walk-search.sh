@@ -30,6 +30,9 @@
 #   noisy scores is the luckiest: fresh seeds for the few best correct the luck (racing, as in
 #   successive halving). Each choice reads the previous one's --ranking CSV.
 # Then the chosen candidate over the whole standard table on the standard seeds (drawn from 0).
+# The standard table is the installed one: every search of the log ran with nao-walk-1; from
+# commit "table nao-walk-2" on, the re-check, the race and the final table leave ODE's friction
+# cells out (ODE's unlimited friction has none to scale), as docs/robustness.md says.
 # Knobs for the pilots after the twelfth search (docs/robustness/searches.md): TOP=10 (the
 # re-check takes each stage 1b's 10 best), STAGE1_ENGINE=ode (stage 1 on ODE).
 # STAGE1B_SET="NAME=VALUE ..." adds problem settings to every stage 1b: the pilots after the

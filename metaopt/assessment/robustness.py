@@ -5,7 +5,9 @@ range, rate), not single trajectories.
 A problem announces its standard table (ProblemInfo.perturbations): named cells, each a change
 of problem parameters (scale one, set another), under a version string that changes whenever a
 cell does, so tables from different days are comparable. Every cell uses the same N evaluation
-seeds (common random numbers: differences between cells are not seed noise).
+seeds (common random numbers: differences between cells are not seed noise). A cell that
+changes nothing on an engine (its ``inert`` says why) is left out there, so the whole table
+does not count the nominal world twice.
 """
 
 from __future__ import annotations
@@ -13,7 +15,7 @@ from __future__ import annotations
 import csv
 import math
 import statistics
-from collections.abc import Mapping, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
@@ -24,7 +26,7 @@ from metaopt.assessment.candidates import Candidate
 from metaopt.errors import ConfigError
 from metaopt.executors.base import EvaluationTask, Executor, Outcome
 from metaopt.params import resolve
-from metaopt.problem import ProblemInfo
+from metaopt.problem import Problem, ProblemInfo
 from metaopt.seeding import EvaluationSeeds
 from metaopt.storage.whole_file import written_whole
 
@@ -35,12 +37,15 @@ if TYPE_CHECKING:
 @dataclass(frozen=True)
 class Perturbation:
     """One cell of a table: problem parameters multiplied (``scale``) or replaced (``set``)
-    relative to the candidate's own."""
+    relative to the candidate's own. ``inert``, given the cell's problem on one engine, says
+    why the cell changes nothing there (None: it does); the cell is then left out on that
+    engine, where its episodes would repeat the nominal world's."""
 
     name: str
     description: str
     scale: Mapping[str, float] = field(default_factory=dict)
     set: Mapping[str, Any] = field(default_factory=dict)
+    inert: Callable[[Problem], str | None] | None = None
 
     def apply(self, params: Mapping[str, Any]) -> dict[str, Any]:
         """The candidate's parameters with this cell's changes."""
@@ -104,6 +109,15 @@ def engine_param(info: ProblemInfo) -> str:
     return "backend"
 
 
+@dataclass
+class Plan:
+    """What one candidate's table runs: every (cell, engine, task), and the (cell, engine,
+    reason) left out because the cell changes nothing on that engine."""
+
+    tasks: list[tuple[str, str, EvaluationTask]]
+    left_out: list[tuple[str, str, str]]
+
+
 def tasks(
     candidate: Candidate,
     info: ProblemInfo,
@@ -111,36 +125,43 @@ def tasks(
     engines: Sequence[str],
     seeds: int,
     seed: int,
-) -> list[tuple[str, str, EvaluationTask]]:
+) -> Plan:
     """Every (cell, engine, task): the same ``seeds`` evaluation seeds (drawn from ``seed``)
-    in every cell and on every engine. Parameters are checked before anything runs (each
-    cell's problem is built once and closed: engines are built on first use)."""
+    in every cell and on every engine, but for the cells inert there. Parameters are checked
+    before anything runs (each cell's problem is built once and closed: engines are built on
+    first use)."""
     if seeds < 1:
         raise ConfigError(f"seeds must be at least 1, got {seeds}")
     backend = engine_param(info)
     draw = EvaluationSeeds(seed)
     base = {**candidate.params, **table.common}
-    out = []
+    plan = Plan([], [])
     for cell in table.cells:
         for engine in engines:
             given = {**cell.apply(base), backend: engine}
             params = resolve(info.params, given, f"{info.name} ({cell.name} on {engine})")
-            info.factory(**params).close()  # a problem refusing its parameters says so now
+            problem = info.factory(**params)  # a problem refusing its parameters says so now
+            try:
+                reason = cell.inert(problem) if cell.inert is not None else None
+            finally:
+                problem.close()
+            if reason is not None:
+                plan.left_out.append((cell.name, engine, reason))
+                continue
             for i in range(seeds):
-                index = len(out)
-                out.append((cell.name, engine, EvaluationTask(
+                index = len(plan.tasks)
+                plan.tasks.append((cell.name, engine, EvaluationTask(
                     index, candidate.x, draw(i), info.factory, params)))  # fmt: skip
-    return out
+    return plan
 
 
-def evaluate(
-    plans: Sequence[Sequence[tuple[str, str, EvaluationTask]]], executor: Executor
-) -> list[list[CellResult]]:
+def evaluate(plans: Sequence[Plan], executor: Executor) -> list[list[CellResult]]:
     """Each plan (what tasks() returns for one candidate) as that candidate's cells on every
     engine, in table order. Every plan's tasks are submitted before any result is awaited, so
     the executor's workers stay busy from one candidate to the next."""
     submitted = [
-        [(cell, engine, executor.submit(task)) for cell, engine, task in plan] for plan in plans
+        [(cell, engine, executor.submit(task)) for cell, engine, task in plan.tasks]
+        for plan in plans
     ]
     tables = []
     for futures in submitted:
@@ -345,13 +366,21 @@ def figure(
     top, bottom = fig.subplots(2, 1, sharex=True, height_ratios=(3, 2))
     width = 0.8 / max(1, len(engines))
     where = np.arange(len(cells))
+    no_bar = (math.nan, math.nan, math.nan)  # a cell left out on an engine (inert there)
     for k, engine in enumerate(engines):
         offset = where - 0.4 + width * (k + 0.5)
-        stats = [by_key[(c, engine)].summary(speed) for c in cells]
+        rows = [by_key.get((c, engine)) for c in cells]
+        stats = [row.summary(speed) if row is not None else no_bar for row in rows]
         median = np.array([s[0] for s in stats])
         spread = np.array([[s[0] - s[1] for s in stats], [s[2] - s[0] for s in stats]])
         top.bar(offset, median, width, yerr=spread, capsize=2, label=engine)
-        bottom.bar(offset, [by_key[(c, engine)].summary(fell)[0] for c in cells], width)
+        falls = [row.summary(fell)[0] if row is not None else math.nan for row in rows]
+        bottom.bar(offset, falls, width)
+        for place, row in zip(offset, rows, strict=True):
+            if row is None:
+                top.annotate("left out", (place, 0), xytext=(0, 4), textcoords="offset points",
+                             ha="center", va="bottom", rotation=90, fontsize="x-small",
+                             color="grey")  # fmt: skip
     top.set_ylabel(f"{speed} (median, IQR)")
     top.set_title(f"{candidate.label}: perturbation table {table.version}", fontsize="medium")
     top.legend(fontsize="small")

@@ -140,9 +140,15 @@ def robustness_command(
     if len(ranked) > 1:
         console.print(display.robustness_ranking(ranked, table.version, table.metrics, goals))
     best = ranked[0]
+    left_out = {id(c): plan.left_out for c, plan in zip(candidates, plans, strict=True)}
     console.print(
         display.robustness_table(
-            best.candidate.label, table.version, best.results, table.metrics, best.totals
+            best.candidate.label,
+            table.version,
+            best.results,
+            table.metrics,
+            best.totals,
+            left_out[id(best.candidate)],
         )
     )
     if goals:

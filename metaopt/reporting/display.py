@@ -323,12 +323,24 @@ def reflow(text: str) -> str:
 
 
 def robustness_table(
-    label: str, version: str, results: Sequence, metrics: Sequence[str], totals: Sequence = ()
+    label: str,
+    version: str,
+    results: Sequence,
+    metrics: Sequence[str],
+    totals: Sequence = (),
+    left_out: Sequence[tuple[str, str, str]] = (),
 ) -> Table:
     """`metaopt robustness`: per perturbation and engine, each metric's median over the seeds
     (a rate: its value), with the first metric's interquartile range; then the ``totals``
-    (per engine, over the whole table) below a line."""
-    table = Table(title=f"{label}: perturbation table {version}", title_justify="left")
+    (per engine, over the whole table) below a line; the (cell, engine, reason) ``left_out``
+    (inert there) named below the table."""
+    inert: dict[tuple[str, str], list[str]] = {}
+    for cell, engine, reason in left_out:
+        inert.setdefault((engine, reason), []).append(cell)
+    caption = "\n".join(f"left out on {engine} ({', '.join(cells)}): {reason}"
+                         for (engine, reason), cells in inert.items())  # fmt: skip
+    table = Table(title=f"{label}: perturbation table {version}", title_justify="left",
+                  caption=caption or None, caption_justify="left")  # fmt: skip
     table.add_column("perturbation")
     table.add_column("engine")
     table.add_column("seeds", justify="right")
