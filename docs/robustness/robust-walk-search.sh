@@ -35,6 +35,9 @@
 # cells out (ODE's unlimited friction has none to scale), as docs/robustness.md says.
 # Knobs for the pilots after the twelfth search (docs/robustness/searches.md): TOP=10 (the
 # re-check takes each stage 1b's 10 best), STAGE1_ENGINE=ode (stage 1 on ODE).
+# STAGE1_SET="NAME=VALUE ..." adds problem settings to every stage-1 run (the basin race
+# walks the whole 15 s episode whatever stage 1 walked): STAGE1_SET=duration=9 (6 s of walking,
+# half the cost) with STAGE1B_BUDGET=900 gives stage 1b the time stage 1 saves.
 # STAGE1B_SET="NAME=VALUE ..." adds problem settings to every stage 1b: the pilots after the
 # thirteenth (docs/robustness/searches.md) ran STAGE1B_SET=worlds=standard (sampled worlds),
 # STAGE1B_SET=flight_allowed=0.02 (a flight margin), both, and STAGE1B_SET=flight_allowed=0.035
@@ -48,11 +51,13 @@
 # script at commit 5ed7043, the seventh at 3c42de4, the sixth at 6e1fe34, the fifth at
 # 3c8db53, the fourth at ff6956d, the third at abce00d, the second at 9d03e62.
 set -euo pipefail
-seed=${1:?usage: [STAGE1B_BUDGET=N TOP=K STAGE1_ENGINE=E STAGE1B_START=all|raced STAGE1B_SET="NAME=VALUE ..."] robust-walk-search.sh SEED}
+seed=${1:?usage: [STAGE1B_BUDGET=N TOP=K STAGE1_ENGINE=E STAGE1_SET="NAME=VALUE ..." STAGE1B_START=all|raced STAGE1B_SET="NAME=VALUE ..."] robust-walk-search.sh SEED}
 stage1b_budget=${STAGE1B_BUDGET:-600}
 top=${TOP:-3}
 stage1_engine=${STAGE1_ENGINE:-mujoco}
 stage1b_start=${STAGE1B_START:-raced}
+stage1_set=()
+for pair in ${STAGE1_SET:-}; do stage1_set+=(--set "$pair"); done
 stage1b_set=()
 for pair in ${STAGE1B_SET:-}; do stage1b_set+=(--set "$pair"); done
 db=robust-walk-s$seed.db
@@ -65,8 +70,8 @@ for p in 1 2 3; do
     starts=()
     for r in 1 2 3 4; do
         metaopt run -o hs -p nao-walk --budget 1000 --seed $((100 * seed + 10 * p + r)) \
-            "${walk[@]}" --set backend="$stage1_engine" --set flight_penalty=20 --workers 2 \
-            --batch 2 --db "$db"
+            "${walk[@]}" --set backend="$stage1_engine" --set flight_penalty=20 \
+            ${stage1_set[@]+"${stage1_set[@]}"} --workers 2 --batch 2 --db "$db"
         run=$((run + 1))
         starts+=(--start-from "$run")
     done
@@ -74,7 +79,8 @@ for p in 1 2 3; do
         basins="robust-walk-s$seed-p$p-basins.csv"
         metaopt robustness $((run - 3)) $((run - 2)) $((run - 1)) "$run" --cells nominal \
             --seeds 8 --seed 3 --goal "speed>=0.44" --set fitness=progress \
-            --set flight_penalty=50 --workers 2 --db "$db" --ranking "$basins"
+            --set flight_penalty=50 --set duration=15 --workers 2 --db "$db" \
+            --ranking "$basins"
         starts=(--start-from "$(first "$basins" 1)")
     fi
     metaopt run -o hs -p nao-walk --budget "$stage1b_budget" --seed $((10 * seed + p)) \
