@@ -205,6 +205,10 @@ def test_the_friction_cells_are_left_out_where_the_friction_is_unlimited() -> No
         assert all("unlimited" in reason for _, _, reason in plan.left_out)
         ran = {(cell, engine) for cell, engine, _ in plan.tasks}
         assert len(ran) == 2 * 11 - len(left_out)
+    goal_walk, _ = find_candidate("goal_walk", registry().problems, "none.db")
+    friction_only = select_cells(STANDARD_TABLE, friction_cells)
+    with pytest.raises(ConfigError, match=r"changes nothing on ode \(friction x0\.7: its ground"):
+        tasks(goal_walk, info, friction_only, ("mujoco", "ode"), 1, seed=0)
     scaled = info.factory(**{**plan.tasks[0][2].params, "backend": "ode", "friction_scale": 0.7})
     try:
         assert scaled.runner.backend.ground_friction() == pytest.approx(0.7)  # hs_walk's 1 x 0.7
@@ -229,6 +233,11 @@ def test_a_left_out_cell_is_named_and_absent_from_the_csv_and_the_whole_table(
         ("nominal", "ode", "2"), ("whole table", "ode", "2")
     ]  # fmt: skip
     assert (tmp_path / "t.png").stat().st_size > 1000
+    # nothing left to run on an engine: one line, exit 2, no file
+    empty = metaopt_cli("robustness", "goal_walk", "--engines", "ode", "--cells",
+                        "friction x0.7", "--csv", "e.csv", cwd=tmp_path)  # fmt: skip
+    assert empty.returncode == 2 and "Traceback" not in empty.stderr
+    assert "changes nothing on ode" in empty.stderr and not (tmp_path / "e.csv").exists()
 
 
 def _cells(engine_fitnesses: dict[str, list[float]], failed: int = 0) -> list[CellResult]:

@@ -127,9 +127,9 @@ def tasks(
     seed: int,
 ) -> Plan:
     """Every (cell, engine, task): the same ``seeds`` evaluation seeds (drawn from ``seed``)
-    in every cell and on every engine, but for the cells inert there. Parameters are checked
-    before anything runs (each cell's problem is built once and closed: engines are built on
-    first use)."""
+    in every cell and on every engine, but for the cells inert there (ConfigError when that
+    leaves an engine nothing). Parameters are checked before anything runs (each cell's
+    problem is built once and closed: engines are built on first use)."""
     if seeds < 1:
         raise ConfigError(f"seeds must be at least 1, got {seeds}")
     backend = engine_param(info)
@@ -152,6 +152,13 @@ def tasks(
                 index = len(plan.tasks)
                 plan.tasks.append((cell.name, engine, EvaluationTask(
                     index, candidate.x, draw(i), info.factory, params)))  # fmt: skip
+    for engine in set(engines) - {engine for _, engine, _ in plan.tasks}:
+        reasons = "; ".join(f"{cell}: {reason}" for cell, on, reason in plan.left_out
+                            if on == engine)  # fmt: skip
+        raise ConfigError(
+            f"{candidate.label}: every cell asked for changes nothing on {engine} ({reasons}), "
+            "so there is nothing to evaluate there; ask for other cells or engines"
+        )
     return plan
 
 
@@ -356,7 +363,7 @@ def figure(
     fell: str,
 ) -> Figure:
     """Per cell and engine: the median of ``speed`` with its interquartile range (top) and the
-    rate of ``fell`` (bottom)."""
+    rate of ``fell`` (bottom); a cell left out on an engine is marked so, without a bar."""
     from matplotlib.figure import Figure
 
     cells = [c.name for c in table.cells]
