@@ -4,11 +4,13 @@ by ``metaopt robustness``. Change a cell, and the version, together."""
 from __future__ import annotations
 
 import math
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, cast
 
 from metaopt.assessment.robustness import Perturbation, PerturbationTable
 
 if TYPE_CHECKING:
+    from metaopt.problem import Problem
+
     from .plugin import NaoWalk
 
 #: Every cell runs at this background noise (friction within ±2 %, a 5 mm/s push as walking
@@ -17,11 +19,13 @@ if TYPE_CHECKING:
 BACKGROUND_NOISE = 0.1
 
 
-def unlimited_friction(problem: NaoWalk) -> str | None:
-    """Why a friction cell changes nothing on the problem's engine: its ground friction is
-    unlimited (ODE's default, the paper's server), which no scale changes; None otherwise."""
-    (engine,) = problem.engines
-    if math.isinf(problem.physics_on[engine].friction):
+def unlimited_friction(problem: Problem) -> str | None:
+    """Why a friction cell changes nothing on the problem's engine (a nao-walk on one): its
+    ground friction is unlimited (ODE's default, the paper's server), which no scale changes;
+    None otherwise."""
+    walk = cast("NaoWalk", problem)
+    (engine,) = walk.engines
+    if math.isinf(walk.physics_on[engine].friction):
         return "its ground friction is unlimited (the server's): no coefficient to scale"
     return None
 
