@@ -152,7 +152,10 @@ def tasks(
                 index = len(plan.tasks)
                 plan.tasks.append((cell.name, engine, EvaluationTask(
                     index, candidate.x, draw(i), info.factory, params)))  # fmt: skip
-    for engine in set(engines) - {engine for _, engine, _ in plan.tasks}:
+    ran = {on for _, on, _ in plan.tasks}
+    idle = [engine for engine in engines if engine not in ran]
+    if idle:
+        engine = idle[0]
         reasons = "; ".join(f"{cell}: {reason}" for cell, on, reason in plan.left_out
                             if on == engine)  # fmt: skip
         raise ConfigError(
