@@ -225,9 +225,9 @@ def test_a_left_out_cell_is_named_and_absent_from_the_csv_and_the_whole_table(
                          "nominal,friction x0.7", "--seeds", "2", "--set", "duration=5",
                          "--csv", "t.csv", "--figure", "t.png", cwd=tmp_path)  # fmt: skip
     assert result.returncode == 0, result.stderr
-    assert "left out on ode (friction x0.7): its ground friction is unlimited" in " ".join(
-        result.stdout.split()
-    )
+    shown = " ".join(result.stdout.split())
+    assert "2 cells x 1 engines x 2 seeds, 2 evaluations (left out: 1 x a cell" in shown
+    assert "left out on ode (friction x0.7): its ground friction is unlimited" in shown
     rows = _rows(tmp_path / "t.csv")
     assert [(r["cell"], r["engine"], r["seeds"]) for r in rows] == [
         ("nominal", "ode", "2"), ("whole table", "ode", "2")
