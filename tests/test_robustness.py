@@ -196,24 +196,29 @@ def test_the_friction_cells_are_left_out_where_the_friction_is_unlimited() -> No
         pytest.skip(registry().physics_backends["ode"].unavailable)
     info = registry().problem("nao-walk")
     friction_cells = ["friction x0.7", "friction x1.3"]
+    plans = {}
     for name, left_out in (("goal_walk", friction_cells), ("hs_walk", [])):
         candidate, _ = find_candidate(name, registry().problems, "none.db")
-        plan = tasks(candidate, info, STANDARD_TABLE, ("mujoco", "ode"), 1, seed=0)
+        plan = plans[name] = tasks(candidate, info, STANDARD_TABLE, ("mujoco", "ode"), 1, seed=0)
         assert [(cell, engine) for cell, engine, _ in plan.left_out] == [
             (cell, "ode") for cell in left_out
         ]
         assert all("unlimited" in reason for _, _, reason in plan.left_out)
         ran = {(cell, engine) for cell, engine, _ in plan.tasks}
         assert len(ran) == 2 * 11 - len(left_out)
+    # the cell that runs on ODE at hs_walk's finite friction: ODE holds 1 x 0.7
+    (cell_params,) = [task.params for cell, engine, task in plans["hs_walk"].tasks
+                      if (cell, engine) == ("friction x0.7", "ode")]  # fmt: skip
+    scaled = info.factory(**cell_params)
+    try:
+        assert scaled.runner.backend.ground_friction() == pytest.approx(0.7)
+    finally:
+        scaled.close()
+    # nothing left to run on ODE: refused, naming the cells and why
     goal_walk, _ = find_candidate("goal_walk", registry().problems, "none.db")
     friction_only = select_cells(STANDARD_TABLE, friction_cells)
     with pytest.raises(ConfigError, match=r"changes nothing on ode \(friction x0\.7: its ground"):
         tasks(goal_walk, info, friction_only, ("mujoco", "ode"), 1, seed=0)
-    scaled = info.factory(**{**plan.tasks[0][2].params, "backend": "ode", "friction_scale": 0.7})
-    try:
-        assert scaled.runner.backend.ground_friction() == pytest.approx(0.7)  # hs_walk's 1 x 0.7
-    finally:
-        scaled.close()
 
 
 def test_a_left_out_cell_is_named_and_absent_from_the_csv_and_the_whole_table(
