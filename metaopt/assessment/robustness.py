@@ -167,8 +167,9 @@ def tasks(
 
 def evaluate(plans: Sequence[Plan], executor: Executor) -> list[list[CellResult]]:
     """Each plan (what tasks() returns for one candidate) as that candidate's cells on every
-    engine, in table order. Every plan's tasks are submitted before any result is awaited, so
-    the executor's workers stay busy from one candidate to the next."""
+    engine they run on, in table order (a cell left out on an engine has no result there).
+    Every plan's tasks are submitted before any result is awaited, so the executor's workers
+    stay busy from one candidate to the next."""
     submitted = [
         [(cell, engine, executor.submit(task)) for cell, engine, task in plan.tasks]
         for plan in plans

@@ -130,10 +130,10 @@ def robustness_command(
             stacklevel=1,
         )
     several = f" x {len(candidates)} candidates" if len(candidates) > 1 else ""
-    left_out = sum(len(plan.left_out) for plan in plans)
+    inert_pairs = sum(len(plan.left_out) for plan in plans)
     evaluations = sum(len(plan.tasks) for plan in plans)
-    inert = (f", {evaluations} evaluations (left out: {left_out} x a cell on an engine it "
-             "changes nothing on)") if left_out else ""  # fmt: skip
+    inert = (f", {evaluations} evaluations (left out: {inert_pairs} x a cell on an engine it "
+             "changes nothing on)") if inert_pairs else ""  # fmt: skip
     console.print(f"perturbation table {table.version}: {len(table.cells)} cells x "
                   f"{len(names)} engines x {seeds} seeds{several}{inert}")  # fmt: skip
     with build_executor(executor, workers, scheduler) as pool:
@@ -144,6 +144,7 @@ def robustness_command(
     if len(ranked) > 1:
         console.print(display.robustness_ranking(ranked, table.version, table.metrics, goals))
     best = ranked[0]
+    # the best candidate's plan; by identity, as a Candidate (it holds an array) is unhashable
     left_out_of = {id(c): plan.left_out for c, plan in zip(candidates, plans, strict=True)}
     console.print(
         display.robustness_table(
