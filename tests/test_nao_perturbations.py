@@ -2,7 +2,7 @@
 momentum by its impulse, a mass scale is the mass and inertia the engine holds, latency delays
 what the gait senses by exactly k steps, flight is the footfalls' share; and a lock phase
 saved for one model is never restored into another; worlds=standard draws a cell of the
-standard table per evaluation."""
+standard table per evaluation, worlds=pushes a push."""
 
 from __future__ import annotations
 
@@ -26,7 +26,7 @@ from metaopt_problems.nao_walk.episode import (
 )
 from metaopt_problems.nao_walk.footfalls import footfalls
 from metaopt_problems.nao_walk.robot import nao
-from metaopt_problems.nao_walk.robustness import STANDARD_TABLE
+from metaopt_problems.nao_walk.robustness import PUSH_IMPULSE, STANDARD_TABLE
 from metaopt_problems.nao_walk.stored_gaits import gait_vector, load_gait
 
 #: every installed engine (an engine plugin added later is covered without a change here)
@@ -261,3 +261,41 @@ def test_worlds_standard_walks_each_evaluation_in_a_seed_drawn_cell_of_the_table
         sampled.close()
     with pytest.raises(ConfigError, match="push_time"):  # the push cells need 6 s
         _problem("mujoco", worlds="standard", **SHORT)
+
+
+def test_worlds_pushes_walks_each_evaluation_with_a_seed_drawn_push_on_every_engine() -> None:
+    # lock 1 s, 6 s walked: pushes from t = 3 s (2 s into the walk) to t = 4 s (3 s before the end)
+    world = {"duration": 7.0, "lock": 1.0, "noise": 0.1}
+    engines = "mujoco+pybullet"
+    pushed = _problem(engines, worlds="pushes", **world)
+    pushes = [pushed.drawn_push(seed) for seed in range(200)]
+    assert pushes == [pushed.drawn_push(seed) for seed in range(200)]
+    assert {push.impulse for push in pushes} == {PUSH_IMPULSE}
+    assert all(3.0 <= push.time <= 4.0 for push in pushes)
+    quadrants = {math.floor(push.direction / 90.0) for push in pushes}
+    assert quadrants == {-2, -1, 0, 1}  # any horizontal direction
+    x = gait_vector(load_gait())
+    try:
+        for seed in (3, 4):
+            push = pushed.drawn_push(seed)
+            given = {"push": push.impulse, "push_direction": push.direction, "push_time": push.time}
+            direct = _problem(engines, **world, **given)
+            try:
+                expected = direct.evaluate(x, seed)
+            finally:
+                direct.close()
+            evaluation = pushed.evaluate(x, seed)
+            drawn = {"push_direction": push.direction, "push_time": push.time}
+            assert evaluation.metrics == {**expected.metrics, **drawn}
+            assert evaluation.fitness == expected.fitness
+        unpushed = _problem(engines, **world)
+        try:
+            assert unpushed.evaluate(x, 3).metrics["distance"] != evaluation.metrics["distance"]
+        finally:
+            unpushed.close()
+    finally:
+        pushed.close()
+    with pytest.raises(ConfigError, match="leave push at 0"):
+        _problem("mujoco", worlds="pushes", push=1.0, duration=7.0, lock=1.0)
+    with pytest.raises(ConfigError, match="duration must be more than 6 s"):
+        _problem("mujoco", worlds="pushes", **SHORT)

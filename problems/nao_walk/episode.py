@@ -260,17 +260,22 @@ class EpisodeRunner:
         self._cos_tilt = math.cos(math.radians(settings.fall_tilt))
         #: the saved end of the lock phase, with the lock_phase_key it was simulated under
         self._after_lock: tuple[Hashable, Any] | None = None
-        self._push_step = -1
-        self._push_force = (0.0, 0.0, 0.0)
-        if settings.push is not None and settings.push.impulse != 0:
-            self._push_step = round((settings.push.time - settings.lock) / period)
-            if not 0 <= self._push_step < self._walk_steps:
-                raise ValueError(
-                    f"the push at {settings.push.time} s is outside the walking phase "
-                    f"({settings.lock} s to {settings.duration} s)"
-                )
-            self._push_force = settings.push.force(period)
+        #: the settings' push: the walking step it acts in (-1: none) and its force
+        self._push = self._push_plan(settings.push)
         self._settle_steps = math.ceil(SETTLE_S / period - 1e-9)
+
+    def _push_plan(self, push: Push | None) -> tuple[int, tuple[float, float, float]]:
+        """The walking control step a push acts in (-1 for none) and its force; ValueError
+        for a push outside the walking phase."""
+        if push is None or push.impulse == 0:
+            return -1, (0.0, 0.0, 0.0)
+        step = round((push.time - self.settings.lock) / self._period)
+        if not 0 <= step < self._walk_steps:
+            raise ValueError(
+                f"the push at {push.time} s is outside the walking phase "
+                f"({self.settings.lock} s to {self.settings.duration} s)"
+            )
+        return step, push.force(self._period)
 
     @property
     def walk_steps(self) -> int:
@@ -322,14 +327,16 @@ class EpisodeRunner:
         record: bool = False,
         disturbance: Disturbance | None = None,
         on_step: Callable[[int], None] | None = None,
+        push: Push | None = None,
     ) -> EpisodeResult:
         """One episode: lock phase (all joints held at rest), then gait drives DRIVEN_JOINTS
-        until the end or a fall, under ``disturbance`` if given (None: noise-free) and the
-        settings' push and latency. ``record`` keeps a per-step trajectory for plots (true
-        angles, not the sensed ones); ``on_step(steps)`` is called after every walking control
-        step (e.g. to film it)."""
+        until the end or a fall, under ``disturbance`` if given (None: noise-free), the
+        settings' latency and ``push`` (None: the settings' push). ``record`` keeps a per-step
+        trajectory for plots (true angles, not the sensed ones); ``on_step(steps)`` is called
+        after every walking control step (e.g. to film it)."""
         if disturbance is not None and len(disturbance.sensor_errors) != self._walk_steps:
             raise ValueError(f"the disturbance must cover {self._walk_steps} walking steps")
+        push_step, push_force = self._push if push is None else self._push_plan(push)
         backend, targets = self.backend, self._targets
         targets[:] = self._rest
         self._start_walking(disturbance)
@@ -368,8 +375,8 @@ class EpisodeRunner:
             out = gait.act(sensors)
             for index, target in zip(driven, out):
                 targets[index] = target
-            if steps == self._push_step:
-                backend.apply_force(root, self._push_force)
+            if steps == push_step:
+                backend.apply_force(root, push_force)
                 backend.step(targets)
                 backend.apply_force(root, (0.0, 0.0, 0.0))
             else:

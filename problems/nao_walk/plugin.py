@@ -51,7 +51,7 @@ from .extended import (
     stride_space,
 )
 from .robot import nao
-from .robustness import STANDARD_TABLE
+from .robustness import PUSH_IMPULSE, STANDARD_TABLE
 from .video import film
 
 
@@ -78,8 +78,14 @@ CONTROLLER_KINDS = {
     "steered": ControllerKind(steered_space, SteeredCpg),
 }
 CONTROLLERS = tuple(CONTROLLER_KINDS)
-#: worlds: none, or one cell of the standard perturbation table drawn per evaluation.
-WORLDS = ("none", "standard")
+#: worlds: none, one cell of the standard perturbation table drawn per evaluation, or a push
+#: of the table's size in a drawn direction at a drawn time.
+WORLDS = ("none", "standard", "pushes")
+#: worlds=pushes: the push comes no earlier than this after walking starts (the gait grows
+#: over the first seconds) ...
+PUSH_AFTER_S = 2.0
+#: ... and no later than this before the episode ends (time to fall, if it will).
+PUSH_BEFORE_END_S = 3.0
 #: How several engines' fitnesses make one: the worst of them, or their mean.
 ENGINE_SCORES = ("worst", "mean")
 
@@ -144,8 +150,10 @@ PARAMS = (
           "charged no flight_penalty: 0.05 is the robust-walk goal's bound; a search may ask "
           "for less, to keep a margin for the worlds its gait was not tuned in",
           low=0.0, high=1.0),
-    Param("worlds", str, "none", "none, or standard: each evaluation's seed draws one cell of "
-          "the standard perturbation table (docs/robustness.md) to walk in",
+    Param("worlds", str, "none", "none; standard: each evaluation's seed draws one cell of "
+          "the standard perturbation table (docs/robustness.md) to walk in; pushes: each "
+          "evaluation's seed draws a push of the table's size (1 N·s) on the torso, in any "
+          "horizontal direction, at a time from 2 s after walking starts to 3 s before the end",
           choices=WORLDS),
 )  # fmt: skip
 
@@ -155,6 +163,22 @@ def _require_choice(name: str, value: str, accepted: tuple[str, ...]) -> None:
     CLI checks choices before; this is for NaoWalk built from Python)."""
     if value not in accepted:
         raise ConfigError(f"nao-walk: unknown {name} {value!r}; accepted: {', '.join(accepted)}")
+
+
+def _check_push_window(push: float, lock: float, duration: float) -> None:
+    """ConfigError where worlds=pushes cannot draw a push: a push set as well, or an episode
+    too short for the window it draws from."""
+    if push:
+        raise ConfigError(
+            f"nao-walk: worlds=pushes draws each evaluation's push; leave push at 0 (got {push})"
+        )
+    shortest = lock + PUSH_AFTER_S + PUSH_BEFORE_END_S
+    if duration <= shortest:
+        raise ConfigError(
+            f"nao-walk: worlds=pushes pushes from {PUSH_AFTER_S:g} s after walking starts to "
+            f"{PUSH_BEFORE_END_S:g} s before the end; duration must be more than {shortest:g} s "
+            f"(got {duration:g})"
+        )
 
 
 class NaoWalk(Problem):
@@ -245,6 +269,8 @@ class NaoWalk(Problem):
         self._limits = {hinge.name: (hinge.lower, hinge.upper) for hinge in self.robot.hinges}
         self._runners: dict[str, EpisodeRunner] = {}
         _require_choice("worlds", worlds, WORLDS)
+        if worlds == "pushes":
+            _check_push_window(push, lock, duration)
         self.worlds = worlds
         _require_choice("engine_score", engine_score, ENGINE_SCORES)
         self.engine_score = engine_score
@@ -291,6 +317,16 @@ class NaoWalk(Problem):
         from its own stream of the seed, apart from the noise's."""
         return int(np.random.default_rng((seed, 1)).integers(len(STANDARD_TABLE.cells)))
 
+    def drawn_push(self, seed: int) -> Push:
+        """The push an evaluation with seed walks with (worlds=pushes): the table's impulse, its
+        direction and time drawn from their own stream of the seed, apart from the noise's and
+        the cell's."""
+        rng = np.random.default_rng((seed, 2))
+        direction = float(rng.uniform(-180.0, 180.0))
+        earliest = self.episode.lock + PUSH_AFTER_S
+        time = float(rng.uniform(earliest, self.episode.duration - PUSH_BEFORE_END_S))
+        return Push(PUSH_IMPULSE, direction, time)
+
     def _world(self, cell: int) -> NaoWalk:
         """The problem of one cell of the standard table, built on first use."""
         world = self._worlds.get(cell)
@@ -304,11 +340,23 @@ class NaoWalk(Problem):
             cell = self.world_of(seed)
             evaluation = self._world(cell).evaluate(x, seed)
             return Evaluation(evaluation.fitness, {**evaluation.metrics, "world": float(cell)})
+        if self.worlds == "pushes":
+            push = self.drawn_push(seed)
+            evaluation = self._evaluate(x, seed, push)
+            drawn = {"push_direction": push.direction, "push_time": push.time}
+            return Evaluation(evaluation.fitness, {**evaluation.metrics, **drawn})
+        return self._evaluate(x, seed)
+
+    def _evaluate(self, x: np.ndarray, seed: int, push: Push | None = None) -> Evaluation:
+        """x's evaluation on every engine, scored by engine_score; ``push`` replaces the
+        settings' push."""
         gait = self.gait(x)
         if len(self.engines) == 1:
-            return self._evaluate_on(self.engines[0], gait, seed)
+            return self._evaluate_on(self.engines[0], gait, seed, push=push)
         cap = self.engine_cap or math.inf
-        on_engine = {engine: self._evaluate_on(engine, gait, seed, cap) for engine in self.engines}
+        on_engine = {
+            engine: self._evaluate_on(engine, gait, seed, cap, push) for engine in self.engines
+        }
         worst = min(on_engine.values(), key=lambda evaluation: evaluation.fitness)
         metrics = dict(worst.metrics)
         for engine, evaluation in on_engine.items():
@@ -319,8 +367,11 @@ class NaoWalk(Problem):
             return Evaluation(float(np.mean(scores)), metrics)
         return Evaluation(min(scores), metrics)
 
-    def _evaluate_on(self, engine: str, gait: Gait, seed: int, cap: float = math.inf) -> Evaluation:
-        result = self.runner_on(engine).run(gait, disturbance=self.disturbance(seed, engine))
+    def _evaluate_on(
+        self, engine: str, gait: Gait, seed: int, cap: float = math.inf, push: Push | None = None
+    ) -> Evaluation:
+        runner = self.runner_on(engine)
+        result = runner.run(gait, disturbance=self.disturbance(seed, engine), push=push)
         value = fitness(
             result, self.fitness_kind, self.episode.duration, self.flight_penalty, cap,
             self.flight_allowed,

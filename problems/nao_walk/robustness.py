@@ -19,6 +19,11 @@ if TYPE_CHECKING:
 BACKGROUND_NOISE = 0.1
 
 
+#: The push cells' impulse, N·s (about 0.22 m/s on the 4.6 kg robot); worlds=pushes draws
+#: pushes of this size too.
+PUSH_IMPULSE = 1.0
+
+
 def unlimited_friction(problem: Problem) -> str | None:
     """Why a friction cell changes nothing on the problem's engine (a nao-walk on one): its
     ground friction is unlimited (ODE's default, the paper's server), which no scale changes;
@@ -47,9 +52,9 @@ STANDARD_TABLE = PerturbationTable(
         Perturbation("servo gain x0.8", "joint servo gain x0.8", scale={"servo_gain": 0.8}),
         Perturbation("servo gain x1.2", "joint servo gain x1.2", scale={"servo_gain": 1.2}),
         Perturbation("push forward", "1 N·s forward on the torso at t = 6 s",
-                     set={"push": 1.0, "push_direction": 0.0, "push_time": 6.0}),
+                     set={"push": PUSH_IMPULSE, "push_direction": 0.0, "push_time": 6.0}),
         Perturbation("push sideways", "1 N·s to the left on the torso at t = 6 s",
-                     set={"push": 1.0, "push_direction": 90.0, "push_time": 6.0}),
+                     set={"push": PUSH_IMPULSE, "push_direction": 90.0, "push_time": 6.0}),
         Perturbation("latency 1", "the controller senses one control step (20 ms) late",
                      set={"latency": 1}),
         Perturbation("noise 0.5", "nao-walk's seed-drawn noise at 0.5 instead of the "
