@@ -2,7 +2,8 @@
 momentum by its impulse, a mass scale is the mass and inertia the engine holds, latency delays
 what the gait senses by exactly k steps, flight is the footfalls' share; and a lock phase
 saved for one model is never restored into another; worlds=standard draws a cell of the
-standard table per evaluation, worlds=pushes a push."""
+standard table per evaluation, worlds=pushes a push, and a candidate's figures and video show
+the world its evaluation walked."""
 
 from __future__ import annotations
 
@@ -299,3 +300,39 @@ def test_worlds_pushes_walks_each_evaluation_with_a_seed_drawn_push_on_every_eng
         _problem("mujoco", worlds="pushes", push=1.0, duration=7.0, lock=1.0)
     with pytest.raises(ConfigError, match="duration must be more than 6 s"):
         _problem("mujoco", worlds="pushes", **SHORT)
+
+
+def test_figures_and_video_show_the_world_an_evaluation_walked() -> None:
+    world = {"duration": 7.0, "lock": 1.0, "noise": 0.1}
+    x = gait_vector(load_gait())
+
+    def outcome(metrics: dict) -> str:  # as the figures' titles write it
+        return f"{metrics['distance']:.2f} m forward, drift {metrics['drift']:+.3f} m"
+
+    plain = _problem("mujoco", **world)
+    try:
+        for worlds, seed in (("standard", 1), ("pushes", 3)):
+            problem = _problem("mujoco", worlds=worlds, **world)
+            try:
+                walked = outcome(problem.evaluate(x, seed).metrics)
+                assert walked != outcome(plain.evaluate(x, seed).metrics)
+                assert walked in problem.figures(x, seed)["joint_angles"]._suptitle.get_text()
+            finally:
+                problem.close()
+        pushed = _problem("mujoco", worlds="pushes", **world)
+        try:
+            targets: list[tuple[float, float, float]] = []
+
+            def render(width: int, height: int, target: tuple[float, float, float]):
+                targets.append(target)
+                return np.zeros((height, width, 3), np.uint8)
+
+            pushed.runner.backend.render = render
+            pushed.video(x, 3, lambda image: None, (32, 24), 25)
+            gait, drawn = pushed.gait(x), pushed.drawn_push(3)
+            walk = pushed.runner.run(gait, True, pushed.disturbance(3), push=drawn).trajectory
+            np.testing.assert_array_equal(np.array(targets)[:, 0], walk["x"][1::2])
+        finally:
+            pushed.close()
+    finally:
+        plain.close()

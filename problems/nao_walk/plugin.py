@@ -340,12 +340,16 @@ class NaoWalk(Problem):
             cell = self.world_of(seed)
             evaluation = self._world(cell).evaluate(x, seed)
             return Evaluation(evaluation.fitness, {**evaluation.metrics, "world": float(cell)})
-        if self.worlds == "pushes":
-            push = self.drawn_push(seed)
+        push = self._push_of(seed)
+        if push is not None:
             evaluation = self._evaluate(x, seed, push)
             drawn = {"push_direction": push.direction, "push_time": push.time}
             return Evaluation(evaluation.fitness, {**evaluation.metrics, **drawn})
         return self._evaluate(x, seed)
+
+    def _push_of(self, seed: int) -> Push | None:
+        """The push seed draws with worlds=pushes; None otherwise (the settings' push)."""
+        return self.drawn_push(seed) if self.worlds == "pushes" else None
 
     def _evaluate(self, x: np.ndarray, seed: int, push: Push | None = None) -> Evaluation:
         """x's evaluation on every engine, scored by engine_score; ``push`` replaces the
@@ -379,10 +383,14 @@ class NaoWalk(Problem):
         return Evaluation(value, result.metrics())
 
     def figures(self, x: np.ndarray, seed: int) -> dict[str, Figure]:
-        """The paper's Figs. 6-10 of candidate x's walk on the first engine (figures.py)."""
+        """The paper's Figs. 6-10 of candidate x's walk on the first engine (figures.py), in the
+        world its evaluation with seed walked."""
         from .figures import walk_figures  # matplotlib only when drawing
 
-        result = self.runner.run(self.gait(x), record=True, disturbance=self.disturbance(seed))
+        if self.worlds == "standard":
+            return self._world(self.world_of(seed)).figures(x, seed)
+        disturbance, push = self.disturbance(seed), self._push_of(seed)
+        result = self.runner.run(self.gait(x), record=True, disturbance=disturbance, push=push)
         return walk_figures(result, self.engines[0])
 
     def video(
@@ -393,8 +401,13 @@ class NaoWalk(Problem):
         size: tuple[int, int],
         fps: int,
     ) -> None:
-        """Film candidate x's walk on the first engine, the camera following it (video.py)."""
-        film(self.runner, self.gait(x), self.disturbance(seed), frame, size, fps)
+        """Film candidate x's walk on the first engine, the camera following it (video.py), in
+        the world its evaluation with seed walked."""
+        if self.worlds == "standard":
+            self._world(self.world_of(seed)).video(x, seed, frame, size, fps)
+            return
+        disturbance, push = self.disturbance(seed), self._push_of(seed)
+        film(self.runner, self.gait(x), disturbance, frame, size, fps, push)
 
     def close(self) -> None:
         while self._runners:

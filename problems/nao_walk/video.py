@@ -9,7 +9,7 @@ import numpy as np
 
 from metaopt.errors import ConfigError
 
-from .episode import Disturbance, EpisodeRunner, Gait
+from .episode import Disturbance, EpisodeRunner, Gait, Push
 
 #: Height the camera looks at, m: about the middle of the standing robot.
 CAMERA_TARGET_HEIGHT = 0.3
@@ -22,9 +22,11 @@ def film(
     frame: Callable[[np.ndarray], None],
     size: tuple[int, int],
     fps: int,
+    push: Push | None = None,
 ) -> None:
-    """Run one episode of gait, passing ``fps`` images per simulated second of the walking
-    phase to ``frame`` (size = (width, height)); fps must divide the control rate."""
+    """Run one episode of gait (``push``: instead of the runner's, as EpisodeRunner.run),
+    passing ``fps`` images per simulated second of the walking phase to ``frame`` (size =
+    (width, height)); fps must divide the control rate."""
     period = runner.backend.settings.control_period
     every = round(1.0 / (fps * period))
     if every < 1 or abs(every * fps * period - 1.0) > 1e-9:
@@ -39,4 +41,4 @@ def film(
             x, y, _ = backend.root_position()
             frame(backend.render(width, height, (float(x), float(y), CAMERA_TARGET_HEIGHT)))
 
-    runner.run(gait, disturbance=disturbance, on_step=shoot)
+    runner.run(gait, disturbance=disturbance, on_step=shoot, push=push)
