@@ -42,8 +42,10 @@
 # thirteenth (docs/robustness/searches.md) ran STAGE1B_SET=worlds=standard (sampled worlds),
 # STAGE1B_SET=flight_allowed=0.02 (a flight margin), both, and STAGE1B_SET=flight_allowed=0.035
 # (a milder margin), which also ran as whole searches on fresh seeds 4-6; the one-seed pilot
-# after the half walk ran STAGE1B_SET="flight_allowed=0.035 engine_score=worst" on seed 10 (a
-# later --set of a name wins over the script's engine_score=mean).
+# after the half walk ran STAGE1B_SET="flight_allowed=0.035 engine_score=worst" on seeds 10-11 (a
+# later --set of a name wins over the script's engine_score=mean); the whole searches on fresh
+# seeds 12-14 ran STAGE1B_SET="flight_allowed=0.035 engine_score=worst worlds=pushes" (every
+# stage-1b evaluation pushed once, 1 N·s in a seed-drawn direction and time).
 # This is the thirteenth search, run after commit d228dc7 (nao-walk charges the flight
 # penalty past engine_cap). STAGE1B_START=all gives the twelfth's stage 1b, from all four
 # stage-1 bests; the twelfth (commit f1b7010) and the thirteenth's pilot ran before d228dc7.
