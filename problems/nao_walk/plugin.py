@@ -152,8 +152,9 @@ PARAMS = (
           low=0.0, high=1.0),
     Param("worlds", str, "none", "none; standard: each evaluation's seed draws one cell of "
           "the standard perturbation table (docs/robustness.md) to walk in; pushes: each "
-          "evaluation's seed draws a push of the table's size (1 N·s) on the torso, in any "
-          "horizontal direction, at a time from 2 s after walking starts to 3 s before the end",
+          f"evaluation's seed draws a push of the table's size ({PUSH_IMPULSE:g} N·s) on the "
+          f"torso, in any horizontal direction, at a time from {PUSH_AFTER_S:g} s after walking "
+          f"starts to {PUSH_BEFORE_END_S:g} s before the end",
           choices=WORLDS),
 )  # fmt: skip
 
