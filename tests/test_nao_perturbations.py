@@ -268,7 +268,7 @@ def test_worlds_pushes_walks_each_evaluation_with_a_seed_drawn_push_on_every_eng
     # lock 1 s, 6 s walked: pushes from t = 3 s (2 s into the walk) to t = 4 s (3 s before the end)
     world = {"duration": 7.0, "lock": 1.0, "noise": 0.1}
     engines = "mujoco+pybullet"
-    pushed = _problem(engines, worlds="pushes", **world)
+    pushed, unpushed = _problem(engines, worlds="pushes", **world), _problem(engines, **world)
     pushes = [pushed.drawn_push(seed) for seed in range(200)]
     assert pushes == [pushed.drawn_push(seed) for seed in range(200)]
     assert {push.impulse for push in pushes} == {PUSH_IMPULSE}
@@ -289,13 +289,10 @@ def test_worlds_pushes_walks_each_evaluation_with_a_seed_drawn_push_on_every_eng
             drawn = {"push_direction": push.direction, "push_time": push.time}
             assert evaluation.metrics == {**expected.metrics, **drawn}
             assert evaluation.fitness == expected.fitness
-        unpushed = _problem(engines, **world)
-        try:
-            assert unpushed.evaluate(x, 3).metrics["distance"] != evaluation.metrics["distance"]
-        finally:
-            unpushed.close()
+            assert unpushed.evaluate(x, seed).metrics["distance"] != evaluation.metrics["distance"]
     finally:
         pushed.close()
+        unpushed.close()
     with pytest.raises(ConfigError, match="leave push at 0"):
         _problem("mujoco", worlds="pushes", push=1.0, duration=7.0, lock=1.0)
     with pytest.raises(ConfigError, match="duration must be more than 6 s"):
@@ -309,30 +306,43 @@ def test_figures_and_video_show_the_world_an_evaluation_walked() -> None:
     def outcome(metrics: dict) -> str:  # as the figures' titles write it
         return f"{metrics['distance']:.2f} m forward, drift {metrics['drift']:+.3f} m"
 
+    def recorded_x(problem, seed: int) -> np.ndarray:  # the walk's x, once per filmed frame
+        walk = problem.runner.run(
+            problem.gait(x), record=True, disturbance=problem.disturbance(seed)
+        )
+        return walk.trajectory["x"][1::2]
+
     plain = _problem("mujoco", **world)
     try:
         for worlds, seed in (("standard", 1), ("pushes", 3)):
             problem = _problem("mujoco", worlds=worlds, **world)
+            # the same world given as plain parameters: the seed's cell, or the seed's push
+            if worlds == "standard":
+                given = STANDARD_TABLE.cells[problem.world_of(seed)].apply(
+                    _params("mujoco", **world)
+                )
+            else:
+                push = problem.drawn_push(seed)
+                given = _params("mujoco", **world, push=push.impulse,
+                                push_direction=push.direction, push_time=push.time)  # fmt: skip
+            direct = registry().problem("nao-walk").factory(**given)
             try:
                 walked = outcome(problem.evaluate(x, seed).metrics)
                 assert walked != outcome(plain.evaluate(x, seed).metrics)
                 assert walked in problem.figures(x, seed)["joint_angles"]._suptitle.get_text()
+                targets: list[tuple[float, float, float]] = []
+
+                def render(width: int, height: int, target: tuple, targets=targets):
+                    targets.append(target)
+                    return np.zeros((height, width, 3), np.uint8)
+
+                problem.walked(seed)[0].runner.backend.render = render  # a fake camera
+                problem.video(x, seed, lambda image: None, (32, 24), 25)
+                filmed = np.array(targets)[:, 0]
+                np.testing.assert_array_equal(filmed, recorded_x(direct, seed))
+                assert not np.array_equal(filmed, recorded_x(plain, seed))
             finally:
                 problem.close()
-        pushed = _problem("mujoco", worlds="pushes", **world)
-        try:
-            targets: list[tuple[float, float, float]] = []
-
-            def render(width: int, height: int, target: tuple[float, float, float]):
-                targets.append(target)
-                return np.zeros((height, width, 3), np.uint8)
-
-            pushed.runner.backend.render = render
-            pushed.video(x, 3, lambda image: None, (32, 24), 25)
-            gait, drawn = pushed.gait(x), pushed.drawn_push(3)
-            walk = pushed.runner.run(gait, True, pushed.disturbance(3), push=drawn).trajectory
-            np.testing.assert_array_equal(np.array(targets)[:, 0], walk["x"][1::2])
-        finally:
-            pushed.close()
+                direct.close()
     finally:
         plain.close()

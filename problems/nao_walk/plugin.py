@@ -383,15 +383,20 @@ class NaoWalk(Problem):
         )  # fmt: skip
         return Evaluation(value, result.metrics())
 
+    def walked(self, seed: int) -> tuple[NaoWalk, Disturbance | None, Push | None]:
+        """Where an evaluation with seed walks: the problem whose runner it uses (the seed's
+        cell's, for worlds=standard), its disturbance, and its push (None: the settings')."""
+        if self.worlds == "standard":
+            return self._world(self.world_of(seed)).walked(seed)
+        return self, self.disturbance(seed), self._push_of(seed)
+
     def figures(self, x: np.ndarray, seed: int) -> dict[str, Figure]:
         """The paper's Figs. 6-10 of candidate x's walk on the first engine (figures.py), in the
         world its evaluation with seed walked."""
         from .figures import walk_figures  # matplotlib only when drawing
 
-        if self.worlds == "standard":
-            return self._world(self.world_of(seed)).figures(x, seed)
-        disturbance, push = self.disturbance(seed), self._push_of(seed)
-        result = self.runner.run(self.gait(x), record=True, disturbance=disturbance, push=push)
+        walk, disturbance, push = self.walked(seed)
+        result = walk.runner.run(walk.gait(x), record=True, disturbance=disturbance, push=push)
         return walk_figures(result, self.engines[0])
 
     def video(
@@ -404,11 +409,8 @@ class NaoWalk(Problem):
     ) -> None:
         """Film candidate x's walk on the first engine, the camera following it (video.py), in
         the world its evaluation with seed walked."""
-        if self.worlds == "standard":
-            self._world(self.world_of(seed)).video(x, seed, frame, size, fps)
-            return
-        disturbance, push = self.disturbance(seed), self._push_of(seed)
-        film(self.runner, self.gait(x), disturbance, frame, size, fps, push)
+        walk, disturbance, push = self.walked(seed)
+        film(walk.runner, walk.gait(x), disturbance, frame, size, fps, push)
 
     def close(self) -> None:
         while self._runners:
