@@ -46,6 +46,12 @@
 # later --set of a name wins over the script's engine_score=mean); the whole searches on fresh
 # seeds 12-14 ran STAGE1B_SET="flight_allowed=0.035 engine_score=worst worlds=pushes" (every
 # stage-1b evaluation pushed once, 1 N·s in a seed-drawn direction and time).
+# STAGE1B_RESAMPLE=K scores every stage-1b candidate over the same K evaluation seeds (--resample
+# K --common-seeds, the mean of the K scores; STAGE1B_BUDGET counts evaluations, so it tries
+# STAGE1B_BUDGET / K candidates): with worlds=standard, K fixed cells of the table, the same for
+# every candidate, in place of one cell drawn per evaluation. The whole searches on fresh seeds
+# 15-17 ran STAGE1B_RESAMPLE=3 STAGE1B_BUDGET=540 STAGE1B_SET="flight_allowed=0.035
+# engine_score=worst worlds=standard".
 # This is the thirteenth search, run after commit d228dc7 (nao-walk charges the flight
 # penalty past engine_cap). STAGE1B_START=all gives the twelfth's stage 1b, from all four
 # stage-1 bests; the twelfth (commit f1b7010) and the thirteenth's pilot ran before d228dc7.
@@ -55,7 +61,7 @@
 # script at commit 5ed7043, the seventh at 3c42de4, the sixth at 6e1fe34, the fifth at
 # 3c8db53, the fourth at ff6956d, the third at abce00d, the second at 9d03e62.
 set -euo pipefail
-seed=${1:?usage: [STAGE1B_BUDGET=N TOP=K STAGE1_ENGINE=E STAGE1_SET="NAME=VALUE ..." STAGE1B_START=all|raced STAGE1B_SET="NAME=VALUE ..."] robust-walk-search.sh SEED}
+seed=${1:?usage: [STAGE1B_BUDGET=N STAGE1B_RESAMPLE=K TOP=K STAGE1_ENGINE=E STAGE1_SET="NAME=VALUE ..." STAGE1B_START=all|raced STAGE1B_SET="NAME=VALUE ..."] robust-walk-search.sh SEED}
 stage1b_budget=${STAGE1B_BUDGET:-600}
 top=${TOP:-3}
 stage1_engine=${STAGE1_ENGINE:-mujoco}
@@ -63,6 +69,7 @@ stage1b_start=${STAGE1B_START:-raced}
 stage1_set=()
 for pair in ${STAGE1_SET:-}; do stage1_set+=(--set "$pair"); done
 stage1b_set=()
+if [ "${STAGE1B_RESAMPLE:-1}" -gt 1 ]; then stage1b_set+=(--resample "$STAGE1B_RESAMPLE" --common-seeds); fi
 for pair in ${STAGE1B_SET:-}; do stage1b_set+=(--set "$pair"); done
 db=robust-walk-s$seed.db
 if [ -e "$db" ]; then echo "$db exists: the stages number their runs from 1" >&2; exit 2; fi
