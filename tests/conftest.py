@@ -64,3 +64,14 @@ def metaopt_cli(
         text=True,
         timeout=600,
     )
+
+
+def one_error_line(done: subprocess.CompletedProcess, *needles: str) -> str:
+    """The single stderr line of a refused command (exit 2, no traceback), holding needles."""
+    assert done.returncode == 2, done.stderr
+    lines = done.stderr.strip().splitlines()
+    assert len(lines) == 1 and lines[0].startswith("Error: "), done.stderr
+    assert "Traceback" not in done.stdout + done.stderr
+    for needle in needles:
+        assert needle in lines[0], lines[0]
+    return lines[0]

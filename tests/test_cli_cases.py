@@ -20,7 +20,7 @@ import pytest
 from click.testing import CliRunner
 
 from metaopt.cli import main
-from tests.conftest import metaopt_cli
+from tests.conftest import metaopt_cli, one_error_line
 from tests.engines import needs_ode
 
 BASIC = {"METAOPT_LOAD_PLUGINS": "harmony_search,genetic_algorithm,random_search,functions"}
@@ -34,17 +34,6 @@ def in_process(*args: str, folder) -> str:
     done = CliRunner().invoke(main, [*args, "--db", str(folder / "metaopt.db")])
     assert done.exit_code == 0, (args, done.output, done.exception)
     return done.stdout
-
-
-def one_error_line(done: subprocess.CompletedProcess, *needles: str) -> str:
-    """The single stderr line of a refused command (exit 2, no traceback), holding needles."""
-    assert done.returncode == 2, done.stderr
-    lines = done.stderr.strip().splitlines()
-    assert len(lines) == 1 and lines[0].startswith("Error: "), done.stderr
-    assert "Traceback" not in done.stdout + done.stderr
-    for needle in needles:
-        assert needle in lines[0], lines[0]
-    return lines[0]
 
 
 @pytest.fixture(scope="module")

@@ -16,6 +16,7 @@ from metaopt.assessment.robustness import (
     CellResult,
     Perturbation,
     PerturbationTable,
+    check_changes,
     differing_params,
     parse_goal,
     rank,
@@ -24,11 +25,12 @@ from metaopt.assessment.robustness import (
     whole_table,
     write_ranking,
 )
+from metaopt.params import resolve
 from metaopt.plugins import registry
 from metaopt.storage.run_store import RunStore
-from metaopt_problems.nao_walk.robustness import STANDARD_TABLE
-from metaopt_problems.nao_walk.stored_gaits import gait_vector, load_gait
-from tests.conftest import metaopt_cli
+from metaopt_problems.nao_walk.robustness import NOMINAL_WORLD, STANDARD_TABLE
+from metaopt_problems.nao_walk.stored_gaits import gait_vector, load_gait, stored_gait_names
+from tests.conftest import metaopt_cli, one_error_line
 
 TINY = ("hs_walk", "--engines", "mujoco+pybullet", "--seeds", "2", "--cells",
         "nominal,latency 1", "--set", "duration=4", "--set", "lock=1")  # fmt: skip
@@ -44,7 +46,7 @@ def test_a_cell_scales_or_sets_the_candidates_parameters() -> None:
 def test_the_standard_table_is_versioned_and_names_the_issues_perturbations() -> None:
     info = registry().problem("nao-walk")
     assert info.perturbations is STANDARD_TABLE
-    assert STANDARD_TABLE.version == "nao-walk-2"
+    assert STANDARD_TABLE.version == "nao-walk-3"
     names = [cell.name for cell in STANDARD_TABLE.cells]
     assert names[0] == "nominal" and len(set(names)) == len(names) == 11
     assert STANDARD_TABLE.metrics == ("speed", "|drift|", "fell", "flight")
@@ -67,13 +69,71 @@ def test_every_cell_and_engine_uses_the_same_seeds_and_checked_parameters() -> N
     assert by_cell["mass x1.1"]["mass_scale"] == pytest.approx(1.1)
     assert by_cell["push sideways"]["push_direction"] == 90.0
     assert by_cell["noise 0.5"]["noise"] == 0.5 and by_cell["nominal"]["noise"] == 0.1
-    # a candidate searched over sampled worlds is tried in each cell alone
-    sampled = Candidate("c", "nao-walk", {**candidate.params, "worlds": "standard"}, candidate.x)
-    planned = tasks(sampled, info, STANDARD_TABLE, ("mujoco",), 1, seed=4).tasks
-    assert {task.params["worlds"] for _, _, task in planned} == {"none"}
     with pytest.raises(ConfigError, match="friction"):  # MuJoCo's limit is 3
         tasks(Candidate("c", "nao-walk", {**candidate.params, "friction": 2.5},
                         candidate.x), info, STANDARD_TABLE, ("mujoco",), 1, 0)  # fmt: skip
+
+
+def test_a_gait_searched_in_a_perturbed_world_is_tried_in_the_tables_worlds() -> None:
+    """Each cell starts from the nominal world: a gait's own push, latency, mass or friction
+    scale or sampled worlds do not carry into the cells (they did until nao-walk-3), and its
+    evaluation in a cell is that of the same gait given no perturbation of its own."""
+    info = registry().problem("nao-walk")
+    plain, _ = find_candidate("hs_walk", registry().problems, "none.db")
+    short = {**plain.params, "duration": 4.0, "lock": 1.0}
+    perturbed = {**short, "push": 1.0, "push_time": 2.0, "latency": 2, "mass_scale": 1.1,
+                 "friction_scale": 0.8, "worlds": "standard"}  # fmt: skip
+    cells = select_cells(STANDARD_TABLE, ["nominal", "mass x1.1", "latency 1"])
+    plans = [
+        tasks(Candidate(name, "nao-walk", params, plain.x), info, cells, ("mujoco",), 1, 5)
+        for name, params in (("plain", short), ("perturbed", perturbed))
+    ]
+    by_cell = [{cell: task for cell, _, task in plan.tasks} for plan in plans]
+    unused = {"push_time"}  # with no push
+    for cell in ("nominal", "mass x1.1", "latency 1"):
+        params = [{k: v for k, v in c[cell].params.items() if k not in unused} for c in by_cell]
+        assert params[0] == params[1]
+    params = by_cell[1]["latency 1"].params
+    assert (params["push"], params["latency"], params["worlds"]) == (0.0, 1, "none")
+    assert by_cell[1]["mass x1.1"].params["mass_scale"] == pytest.approx(1.1)
+    # the episodes themselves: the perturbed gait's nominal cell walks the plain gait's walk
+    walks = []
+    for plan in plans:
+        task = next(task for cell, _, task in plan.tasks if cell == "nominal")
+        problem = info.factory(**task.params)
+        try:
+            walks.append(problem.evaluate(task.x, task.seed).metrics)
+        finally:
+            problem.close()
+    assert walks[0] == walks[1]
+    problem = info.factory(**resolve(info.params, {**perturbed, "worlds": "none",
+                                                   "measure_flight": True, "noise": 0.1},
+                                     "nao-walk"))  # fmt: skip
+    try:
+        assert problem.evaluate(plain.x, by_cell[0]["nominal"].seed).metrics != walks[0]
+    finally:
+        problem.close()
+
+
+def test_every_stored_gait_starts_from_the_nominal_world_so_its_table_is_unchanged() -> None:
+    """nao-walk-3 differs from nao-walk-2 only for gaits with perturbations of their own: the
+    stored gaits have none, so their nao-walk-2 tables (docs/robustness) stand."""
+    info = registry().problem("nao-walk")
+    for name in stored_gait_names():
+        candidate, _ = find_candidate(name, registry().problems, "none.db")
+        params = resolve(info.params, candidate.params, name)
+        new = {key: NOMINAL_WORLD[key] for key in NOMINAL_WORLD if key != "worlds"}  # 2 had it
+        assert {key: params[key] for key in new} == new, name
+
+
+def test_robustness_refuses_a_change_the_table_overrides(tmp_path: Path) -> None:
+    """--set of a parameter the table sets in every cell would do nothing: refused in one line,
+    before any work."""
+    check_changes({"fitness": "robust", "duration": 8.0}, STANDARD_TABLE)
+    done = metaopt_cli("robustness", "hs_walk", "--set", "latency=1", "--csv", "r.csv",
+                       cwd=tmp_path)  # fmt: skip
+    one_error_line(done, "--set latency=1:", "sets latency=0 in every cell")
+    assert list(tmp_path.iterdir()) == []
 
 
 def test_summaries_are_medians_quartiles_and_rates() -> None:
@@ -127,7 +187,7 @@ def test_robustness_command_end_to_end_and_deterministic(tmp_path: Path) -> None
     serial = metaopt_cli("robustness", *TINY, "--csv", "serial.csv", "--figure", "r.png",
                          "--goal", "speed>=5", "--goal", "fell<=1", cwd=tmp_path)  # fmt: skip
     assert serial.returncode == 0, serial.stderr
-    assert "nao-walk-2" in serial.stdout and "latency 1" in serial.stdout
+    assert "nao-walk-3" in serial.stdout and "latency 1" in serial.stdout
     # the verdict against the goals: no walk reaches 5 m/s, every one falls at most always
     assert "hs_walk against the goals speed>=5, fell<=1:" in serial.stdout
     for engine in ("mujoco", "pybullet"):
@@ -140,7 +200,7 @@ def test_robustness_command_end_to_end_and_deterministic(tmp_path: Path) -> None
     ]  # fmt: skip
     assert "whole table" in serial.stdout
     for row in rows:
-        assert row["table_version"] == "nao-walk-2" and row["candidate"] == "hs_walk"
+        assert row["table_version"] == "nao-walk-3" and row["candidate"] == "hs_walk"
         assert (row["seeds"], row["failed"]) == ("4" if row["cell"] == "whole table" else "2", "0")
         assert float(row["fell"]) in (0.0, 0.5, 1.0)
         low, median, high = (float(row[f"speed_{k}"]) for k in ("q25", "median", "q75"))

@@ -403,6 +403,19 @@ def figure(
     return fig
 
 
+def check_changes(changes: Mapping[str, Any], table: PerturbationTable) -> None:
+    """ConfigError where a change to the candidates' parameters names one the table sets in
+    every cell: it would change nothing, so asking for it is a mistake."""
+    fixed = [name for name in changes if name in table.common]
+    if fixed:
+        name = fixed[0]
+        raise ConfigError(
+            f"--set {name}={changes[name]}: table {table.version} sets {name}="
+            f"{table.common[name]!r} in every cell, so the change would do nothing; accepted: "
+            f"the candidate's other parameters (the table sets {', '.join(table.common)})"
+        )
+
+
 def select_cells(table: PerturbationTable, names: Sequence[str] | None) -> PerturbationTable:
     """The table restricted to the named cells, in table order (all when names is None)."""
     if names is None:

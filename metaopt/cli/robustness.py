@@ -61,7 +61,8 @@ from metaopt.settings import parse_problem_settings
     "settings",
     multiple=True,
     metavar="NAME=VALUE",
-    help="Change one of the candidate's problem parameters first.",
+    help="Change one of the candidate's problem parameters first (not one the table sets in "
+    "every cell).",
 )
 @output_file_option(
     "--csv",
@@ -109,6 +110,7 @@ def robustness_command(
     if info.perturbations is None:
         raise ConfigError(f"problem {info.name!r} has no perturbation table")
     changes = parse_problem_settings(settings, info)
+    robustness.check_changes(changes, info.perturbations)
     candidates = [replace(c, params={**c.params, **changes}) for c in candidates]
     names = engine_names(engines) if engines is not None else tuple(plugins.physics_backends)
     for name in names:
