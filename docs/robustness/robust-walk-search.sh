@@ -50,7 +50,7 @@
 # K --common-seeds, the mean of the K scores; STAGE1B_BUDGET counts evaluations, so it tries
 # STAGE1B_BUDGET / K candidates): with worlds=standard, K fixed cells of the table, the same for
 # every candidate, in place of one cell drawn per evaluation. The whole searches on fresh seeds
-# 15-17 ran STAGE1B_RESAMPLE=3 STAGE1B_BUDGET=540 STAGE1B_SET="flight_allowed=0.035
+# 15-16 (17 was stopped) ran STAGE1B_RESAMPLE=3 STAGE1B_BUDGET=540 STAGE1B_SET="flight_allowed=0.035
 # engine_score=worst worlds=standard".
 # This is the thirteenth search, run after commit d228dc7 (nao-walk charges the flight
 # penalty past engine_cap). STAGE1B_START=all gives the twelfth's stage 1b, from all four
