@@ -49,7 +49,7 @@ STANDARD_TABLE = PerturbationTable(
     # the nominal world
     version="nao-walk-3",
     cells=(
-        Perturbation("nominal", "the gait's own settings"),
+        Perturbation("nominal", "the gait's own settings, unperturbed"),
         Perturbation("friction x0.7", "ground friction x0.7", scale={"friction_scale": 0.7},
                      inert=unlimited_friction),
         Perturbation("friction x1.3", "ground friction x1.3", scale={"friction_scale": 1.3},
