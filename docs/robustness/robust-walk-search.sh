@@ -68,9 +68,11 @@ stage1_engine=${STAGE1_ENGINE:-mujoco}
 stage1b_start=${STAGE1B_START:-raced}
 stage1_set=()
 for pair in ${STAGE1_SET:-}; do stage1_set+=(--set "$pair"); done
-stage1b_set=()
-if [ "${STAGE1B_RESAMPLE:-1}" -gt 1 ]; then stage1b_set+=(--resample "$STAGE1B_RESAMPLE" --common-seeds); fi
-for pair in ${STAGE1B_SET:-}; do stage1b_set+=(--set "$pair"); done
+stage1b_args=()  # metaopt checks the values: a bad one stops the search with one line
+if [ -n "${STAGE1B_RESAMPLE:-}" ]; then
+    stage1b_args+=(--resample "$STAGE1B_RESAMPLE" --common-seeds)
+fi
+for pair in ${STAGE1B_SET:-}; do stage1b_args+=(--set "$pair"); done
 db=robust-walk-s$seed.db
 if [ -e "$db" ]; then echo "$db exists: the stages number their runs from 1" >&2; exit 2; fi
 walk=(--set controller=steered)
@@ -97,7 +99,7 @@ for p in 1 2 3; do
     metaopt run -o hs -p nao-walk --budget "$stage1b_budget" --seed $((10 * seed + p)) \
         "${starts[@]}" "${walk[@]}" --set flight_penalty=50 \
         --set backend=mujoco+pybullet+ode --set engine_score=mean --set engine_cap=6 \
-        --set noise=0.1 --set fitness=progress ${stage1b_set[@]+"${stage1b_set[@]}"} \
+        --set noise=0.1 --set fitness=progress ${stage1b_args[@]+"${stage1b_args[@]}"} \
         --workers 2 --batch 2 --db "$db"
     run=$((run + 1))
     finals+=("$run")
