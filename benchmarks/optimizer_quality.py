@@ -1,4 +1,4 @@
-"""metaopt's HS and GA against popular Python implementations, on the classic and bbob functions.
+"""metaopt's HS, GA and CMA-ES against popular Python implementations, classic and bbob.
 
 Every optimizer minimizes the same functions through the same evaluation counter: each call of f
 counts, the best value of the first ``budget`` calls is the result, and the call after the budget
@@ -49,6 +49,7 @@ PEER_PACKAGES = (
     "pyharmonysearch==1.4.4",
     "mealpy==3.0.1",
     "niapy==2.5.2",
+    "cma==4.5.0",
     "numpy<2",
     "pluggy>=1.3",
     "coco-experiment>=2.6",
@@ -61,7 +62,10 @@ SOLVED = 1e-8
 #: Optimizer label -> its kind: metaopt's run here, the peers in their environment.
 HS_PEERS = ("pyharmonysearch", "mealpy-hs", "niapy-hs")
 GA_PEERS = ("pymoo-ga", "deap-ga")
-METAOPT = ("hs", "ga")
+CMA_PEERS = ("pycma",)
+METAOPT = ("hs", "ga", "cmaes")
+#: Each metaopt optimizer and the peers its medians are counted against.
+PEERS_OF = {"hs": HS_PEERS, "ga": GA_PEERS, "cmaes": CMA_PEERS}
 
 
 class BudgetSpent(Exception):
@@ -271,12 +275,26 @@ def run_deap_ga(f: Counted, lower, upper, seed: int) -> None:
     )
 
 
+def run_pycma(f: Counted, lower, upper, seed: int) -> None:
+    """Hansen's cma with its defaults (population 4 + 3 ln D, no restarts: it stops on its own
+    criteria), from a uniform random point of the unit cube mapped onto the box, initial step 0.3
+    of each range and cma's own bound handling (BoundTransform): metaopt's cmaes's setting."""
+    import cma
+
+    width = upper - lower
+    options = {"bounds": [0.0, 1.0], "seed": seed + 1, "verbose": -9, "maxfevals": f.budget}
+    strategy = cma.CMAEvolutionStrategy(np.random.default_rng(seed).random(len(lower)), 0.3,
+                                        options)  # fmt: skip
+    strategy.optimize(lambda unit: f(lower + np.asarray(unit) * width))
+
+
 PEER_RUNNERS = {
     "pyharmonysearch": run_pyharmonysearch,
     "mealpy-hs": run_mealpy_hs,
     "niapy-hs": run_niapy_hs,
     "pymoo-ga": run_pymoo_ga,
     "deap-ga": run_deap_ga,
+    "pycma": run_pycma,
 }
 
 
@@ -426,7 +444,7 @@ def report(rows: list[dict], optimizers: list[str]) -> str:
             "| mean rank | " + " | ".join(f"{rank_sum[o] / len(functions):.2f}" for o in present)
             + " |"
         )  # fmt: skip
-        for ours, peers in (("hs", HS_PEERS), ("ga", GA_PEERS)):
+        for ours, peers in PEERS_OF.items():
             mine = [o for o in present if split_label(o)[0] == ours]
             for label in mine:
                 for peer in (p for p in peers if p in present):
@@ -478,7 +496,7 @@ def main() -> None:
     parser.add_argument("--budgets", default="10000,20000")
     parser.add_argument("--seeds", type=int, default=5)
     parser.add_argument("--functions", default="", help="names or bbob numbers (default: all)")
-    parser.add_argument("--optimizers", default=",".join(METAOPT + HS_PEERS + GA_PEERS),
+    parser.add_argument("--optimizers", default=",".join(METAOPT + HS_PEERS + GA_PEERS + CMA_PEERS),
                         help="labels; metaopt's take parameters: hs:hmcr=0.9+hms=30")  # fmt: skip
     parser.add_argument("--jobs", type=int, default=2)
     parser.add_argument("--results", type=Path, default=Path("optimizer_quality.jsonl"))

@@ -52,6 +52,9 @@
 # every candidate, in place of one cell drawn per evaluation. The whole searches on fresh seeds
 # 15-16 (17 was stopped) ran STAGE1B_RESAMPLE=3 STAGE1B_BUDGET=540 STAGE1B_SET="flight_allowed=0.035
 # engine_score=worst worlds=standard".
+# STAGE1B_OPTIMIZER=NAME runs stage 1b with another optimizer than hs (its settings through
+# STAGE1B_SET): STAGE1B_OPTIMIZER=cmaes STAGE1B_SET="sigma0=0.05 ..." is CMA-ES started at the
+# raced basin, its first generation the basin and 9 points around it, its step 0.05 of each range.
 # This is the thirteenth search, run after commit d228dc7 (nao-walk charges the flight
 # penalty past engine_cap). STAGE1B_START=all gives the twelfth's stage 1b, from all four
 # stage-1 bests; the twelfth (commit f1b7010) and the thirteenth's pilot ran before d228dc7.
@@ -61,8 +64,9 @@
 # script at commit 5ed7043, the seventh at 3c42de4, the sixth at 6e1fe34, the fifth at
 # 3c8db53, the fourth at ff6956d, the third at abce00d, the second at 9d03e62.
 set -euo pipefail
-seed=${1:?usage: [STAGE1B_BUDGET=N STAGE1B_RESAMPLE=K TOP=K STAGE1_ENGINE=E STAGE1_SET="NAME=VALUE ..." STAGE1B_START=all|raced STAGE1B_SET="NAME=VALUE ..."] robust-walk-search.sh SEED}
+seed=${1:?usage: [STAGE1B_BUDGET=N STAGE1B_OPTIMIZER=NAME STAGE1B_RESAMPLE=K TOP=K STAGE1_ENGINE=E STAGE1_SET="NAME=VALUE ..." STAGE1B_START=all|raced STAGE1B_SET="NAME=VALUE ..."] robust-walk-search.sh SEED}
 stage1b_budget=${STAGE1B_BUDGET:-600}
+stage1b_optimizer=${STAGE1B_OPTIMIZER:-hs}
 top=${TOP:-3}
 stage1_engine=${STAGE1_ENGINE:-mujoco}
 stage1b_start=${STAGE1B_START:-raced}
@@ -96,7 +100,7 @@ for p in 1 2 3; do
             --ranking "$basins"
         starts=(--start-from "$(first "$basins" 1)")
     fi
-    metaopt run -o hs -p nao-walk --budget "$stage1b_budget" --seed $((10 * seed + p)) \
+    metaopt run -o "$stage1b_optimizer" -p nao-walk --budget "$stage1b_budget" --seed $((10 * seed + p)) \
         "${starts[@]}" "${walk[@]}" --set flight_penalty=50 \
         --set backend=mujoco+pybullet+ode --set engine_score=mean --set engine_cap=6 \
         --set noise=0.1 --set fitness=progress ${stage1b_args[@]+"${stage1b_args[@]}"} \

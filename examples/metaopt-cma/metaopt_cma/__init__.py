@@ -1,4 +1,4 @@
-"""The metaopt optimizer ``cmaes``: CMA-ES from the ``cma`` package, with restarts.
+"""The metaopt optimizer ``pycma``: CMA-ES from the ``cma`` package, with restarts.
 
 CMA-ES (Hansen and Ostermeier 2001) samples each generation of ``popsize`` candidates from a
 multivariate normal distribution and moves its mean, step size and covariance towards the better
@@ -112,12 +112,12 @@ class CmaEs(Optimizer):
         """Results of the oldest pending candidates, in ask order; CMA-ES updates per generation."""
         values = [float(f) if math.isfinite(f) else None for f in np.asarray(fitnesses, float)]
         if len(values) > len(self._pending):
-            raise ValueError(f"cmaes: told {len(values)} results, {len(self._pending)} pending")
+            raise ValueError(f"pycma: told {len(values)} results, {len(self._pending)} pending")
         told = [self._pending[i] for i in range(len(values))]
         expected = np.array([candidate for _, candidate in told]).reshape(-1, self.space.dim)
         if not np.array_equal(np.asarray(candidates, dtype=float), expected):
             raise ValueError(
-                "cmaes: the told candidates are not the oldest asked ones; tell results in the "
+                "pycma: the told candidates are not the oldest asked ones; tell results in the "
                 "order their candidates were asked"
             )
         self._log.append(values)
@@ -149,7 +149,7 @@ class CmaEs(Optimizer):
         """Replay the log on a fresh strategy; refuse a state written with another cma version."""
         if state["cma_version"] != cma.__version__:
             raise ConfigError(
-                f"cmaes: this state was written with cma {state['cma_version']} but cma "
+                f"pycma: this state was written with cma {state['cma_version']} but cma "
                 f"{cma.__version__} is installed; install cma=={state['cma_version']} to resume"
             )
         self.seed = state["seed"]
@@ -179,10 +179,10 @@ PARAMS = (
 
 @hookimpl
 def metaopt_optimizers() -> list[OptimizerInfo]:
-    """Announce cmaes."""
+    """Announce pycma."""
     return [
         OptimizerInfo(
-            name="cmaes",
+            name="pycma",
             summary="CMA-ES (the cma package) with restarts; bounds by cma's BoundTransform",
             factory=CmaEs,
             params=PARAMS,

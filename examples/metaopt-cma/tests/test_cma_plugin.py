@@ -1,4 +1,4 @@
-"""cmaes keeps metaopt's contract (the conformance kit) and wraps CMA-ES faithfully."""
+"""pycma keeps metaopt's contract (the conformance kit) and wraps CMA-ES faithfully."""
 
 from __future__ import annotations
 
@@ -11,7 +11,7 @@ from metaopt_cma import CmaEs
 from metaopt import ConfigError, Space
 from metaopt.testing import optimizer_checks
 
-CHECKS = optimizer_checks("cmaes")
+CHECKS = optimizer_checks("pycma")
 SPACE = Space.from_bounds([-3.0] * 4, [7.0] * 4)
 
 
