@@ -55,6 +55,7 @@
 # STAGE1B_OPTIMIZER=NAME runs stage 1b with another optimizer than hs (its settings through
 # STAGE1B_SET): STAGE1B_OPTIMIZER=cmaes STAGE1B_SET="sigma0=0.05 ..." is CMA-ES started at the
 # raced basin, its first generation the basin and 9 points around it, its step 0.05 of each range.
+# PIPELINES=N runs N pipelines instead of 3 (run seeds as above, p = 1 ... N).
 # This is the thirteenth search, run after commit d228dc7 (nao-walk charges the flight
 # penalty past engine_cap). STAGE1B_START=all gives the twelfth's stage 1b, from all four
 # stage-1 bests; the twelfth (commit f1b7010) and the thirteenth's pilot ran before d228dc7.
@@ -64,9 +65,14 @@
 # script at commit 5ed7043, the seventh at 3c42de4, the sixth at 6e1fe34, the fifth at
 # 3c8db53, the fourth at ff6956d, the third at abce00d, the second at 9d03e62.
 set -euo pipefail
-seed=${1:?usage: [STAGE1B_BUDGET=N STAGE1B_OPTIMIZER=NAME STAGE1B_RESAMPLE=K TOP=K STAGE1_ENGINE=E STAGE1_SET="NAME=VALUE ..." STAGE1B_START=all|raced STAGE1B_SET="NAME=VALUE ..."] robust-walk-search.sh SEED}
+seed=${1:?usage: [STAGE1B_BUDGET=N STAGE1B_OPTIMIZER=NAME PIPELINES=N STAGE1B_RESAMPLE=K TOP=K STAGE1_ENGINE=E STAGE1_SET="NAME=VALUE ..." STAGE1B_START=all|raced STAGE1B_SET="NAME=VALUE ..."] robust-walk-search.sh SEED}
 stage1b_budget=${STAGE1B_BUDGET:-600}
 stage1b_optimizer=${STAGE1B_OPTIMIZER:-hs}
+pipelines=${PIPELINES:-3}
+if ! [[ $pipelines =~ ^[1-9][0-9]*$ ]]; then
+    echo "PIPELINES must be a whole number, 1 or more; got '$pipelines'" >&2
+    exit 2
+fi
 top=${TOP:-3}
 stage1_engine=${STAGE1_ENGINE:-mujoco}
 stage1b_start=${STAGE1B_START:-raced}
@@ -83,7 +89,7 @@ walk=(--set controller=steered)
 first() { awk -F, -v n="$2" 'NR > 1 && NR <= n + 1 {print $2}' "$1"; }  # a ranking's N best
 run=0
 finals=()
-for p in 1 2 3; do
+for p in $(seq 1 "$pipelines"); do
     starts=()
     for r in 1 2 3 4; do
         metaopt run -o hs -p nao-walk --budget 1000 --seed $((100 * seed + 10 * p + r)) \
