@@ -55,6 +55,8 @@
 # STAGE1B_OPTIMIZER=NAME runs stage 1b with another optimizer than hs (its settings through
 # STAGE1B_SET): STAGE1B_OPTIMIZER=cmaes STAGE1B_SET="sigma0=0.05 ..." is CMA-ES started at the
 # raced basin, its first generation the basin and 9 points around it, its step 0.05 of each range.
+# STAGE1B_BATCH=B asks B candidates per batch in stage 1b instead of 2 (two workers, HS's one at a
+# time); 0 is the optimizer's own (cmaes: a generation, 10, the same run as 2, with less waiting).
 # PIPELINES=N runs N pipelines instead of 3 (run seeds as above, p = 1 ... N).
 # This is the thirteenth search, run after commit d228dc7 (nao-walk charges the flight
 # penalty past engine_cap). STAGE1B_START=all gives the twelfth's stage 1b, from all four
@@ -65,9 +67,10 @@
 # script at commit 5ed7043, the seventh at 3c42de4, the sixth at 6e1fe34, the fifth at
 # 3c8db53, the fourth at ff6956d, the third at abce00d, the second at 9d03e62.
 set -euo pipefail
-seed=${1:?usage: [STAGE1B_BUDGET=N STAGE1B_OPTIMIZER=NAME PIPELINES=N STAGE1B_RESAMPLE=K TOP=K STAGE1_ENGINE=E STAGE1_SET="NAME=VALUE ..." STAGE1B_START=all|raced STAGE1B_SET="NAME=VALUE ..."] robust-walk-search.sh SEED}
+seed=${1:?usage: [STAGE1B_BUDGET=N STAGE1B_OPTIMIZER=NAME STAGE1B_BATCH=B PIPELINES=N STAGE1B_RESAMPLE=K TOP=K STAGE1_ENGINE=E STAGE1_SET="NAME=VALUE ..." STAGE1B_START=all|raced STAGE1B_SET="NAME=VALUE ..."] robust-walk-search.sh SEED}
 stage1b_budget=${STAGE1B_BUDGET:-600}
 stage1b_optimizer=${STAGE1B_OPTIMIZER:-hs}
+stage1b_batch=${STAGE1B_BATCH:-2}
 pipelines=${PIPELINES:-3}
 if ! [[ $pipelines =~ ^[1-9][0-9]*$ ]]; then
     echo "PIPELINES must be a whole number, 1 or more; got '$pipelines'" >&2
@@ -110,7 +113,7 @@ for p in $(seq 1 "$pipelines"); do
         "${starts[@]}" "${walk[@]}" --set flight_penalty=50 \
         --set backend=mujoco+pybullet+ode --set engine_score=mean --set engine_cap=6 \
         --set noise=0.1 --set fitness=progress ${stage1b_args[@]+"${stage1b_args[@]}"} \
-        --workers 2 --batch 2 --db "$db"
+        --workers 2 --batch "$stage1b_batch" --db "$db"
     run=$((run + 1))
     finals+=("$run")
 done
