@@ -161,7 +161,9 @@ class CMAES(Optimizer):
             k.c_sigma * (2.0 - k.c_sigma) * k.mu_eff
         ) * whitened
         path_length = float(np.linalg.norm(self.p_sigma))
-        unbiased = path_length / math.sqrt(1.0 - (1.0 - k.c_sigma) ** (2 * (self.generation + 1)))
+        # p_sigma's variance if it had been fed unbiased steps: generation counts its updates,
+        # this one included (the first generation only placed the mean).
+        unbiased = path_length / math.sqrt(1.0 - (1.0 - k.c_sigma) ** (2 * self.generation))
         # Stall the rank-one path while the step size path is long (the tutorial's h_sigma).
         h_sigma = unbiased < (1.4 + 2.0 / (self.space.dim + 1.0)) * k.chi_n
         self.p_c = (1.0 - k.c_c) * self.p_c + h_sigma * math.sqrt(
