@@ -224,7 +224,8 @@ PARAMS = (
         "population",
         int,
         0,
-        "lambda, candidates per generation (0: 4 + floor(3 ln n), 10 for nao-walk's 10 parameters)",
+        "lambda, candidates per generation (0: 4 + floor(3 ln n): 10 for the paper's 10 CPG "
+        "parameters, 12 for nao-walk's steered controller's 15)",
         low=0,
     ),
     Param(

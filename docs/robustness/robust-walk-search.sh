@@ -54,9 +54,10 @@
 # engine_score=worst worlds=standard".
 # STAGE1B_OPTIMIZER=NAME runs stage 1b with another optimizer than hs (its settings through
 # STAGE1B_SET): STAGE1B_OPTIMIZER=cmaes STAGE1B_SET="sigma0=0.05 ..." is CMA-ES started at the
-# raced basin, its first generation the basin and 9 points around it, its step 0.05 of each range.
+# raced basin, its first generation the basin and 11 points around it (a generation is 12 for the
+# steered controller's 15 parameters), its step 0.05 of each range.
 # STAGE1B_BATCH=B asks B candidates per batch in stage 1b instead of 2 (two workers, HS's one at a
-# time); 0 is the optimizer's own (cmaes: a generation, 10, the same run as 2, with less waiting).
+# time); 0 is the optimizer's own (cmaes: a generation, 12, the same run as 2, with less waiting).
 # PIPELINES=N runs N pipelines instead of 3 (run seeds as above, p = 1 ... N).
 # This is the thirteenth search, run after commit d228dc7 (nao-walk charges the flight
 # penalty past engine_cap). STAGE1B_START=all gives the twelfth's stage 1b, from all four
