@@ -59,13 +59,14 @@ BBOB = tuple(str(f) for f in range(1, 25))
 SUITE_DIMS = {"classic": (10, 30), "bbob": (10, 20)}
 #: Values below this count as solved (COCO's final target): such medians tie.
 SOLVED = 1e-8
-#: Optimizer label -> its kind: metaopt's run here, the peers in their environment.
-HS_PEERS = ("pyharmonysearch", "mealpy-hs", "niapy-hs")
-GA_PEERS = ("pymoo-ga", "deap-ga")
-CMA_PEERS = ("pycma",)
-METAOPT = ("hs", "ga", "cmaes")
-#: Each metaopt optimizer and the peers its medians are counted against.
-PEERS_OF = {"hs": HS_PEERS, "ga": GA_PEERS, "cmaes": CMA_PEERS}
+#: Each metaopt optimizer (run here) and the peers its medians are counted against (run in their
+#: environment): the default grid is all of them, metaopt's first.
+PEERS_OF = {
+    "hs": ("pyharmonysearch", "mealpy-hs", "niapy-hs"),
+    "ga": ("pymoo-ga", "deap-ga"),
+    "cmaes": ("pycma",),
+}
+DEFAULT_OPTIMIZERS = (*PEERS_OF, *(peer for peers in PEERS_OF.values() for peer in peers))
 
 
 class BudgetSpent(Exception):
@@ -496,7 +497,7 @@ def main() -> None:
     parser.add_argument("--budgets", default="10000,20000")
     parser.add_argument("--seeds", type=int, default=5)
     parser.add_argument("--functions", default="", help="names or bbob numbers (default: all)")
-    parser.add_argument("--optimizers", default=",".join(METAOPT + HS_PEERS + GA_PEERS + CMA_PEERS),
+    parser.add_argument("--optimizers", default=",".join(DEFAULT_OPTIMIZERS),
                         help="labels; metaopt's take parameters: hs:hmcr=0.9+hms=30")  # fmt: skip
     parser.add_argument("--jobs", type=int, default=2)
     parser.add_argument("--results", type=Path, default=Path("optimizer_quality.jsonl"))

@@ -3,7 +3,14 @@
 from metaopt.api import History, Result, create_optimizer, maximize, minimize
 from metaopt.errors import ConfigError, EvaluationError, MetaoptError, RunFailed, StoreError
 from metaopt.hookspecs import hookimpl
-from metaopt.optimizer import Optimizer, OptimizerInfo, budget_param, restore_rng, rng_state
+from metaopt.optimizer import (
+    Optimizer,
+    OptimizerInfo,
+    budget_param,
+    json_float,
+    restore_rng,
+    rng_state,
+)
 from metaopt.params import Param
 from metaopt.problem import Evaluation, Problem, ProblemInfo, Sense
 from metaopt.space import Space, Variable
@@ -31,6 +38,7 @@ __all__ = [
     "budget_param",
     "create_optimizer",
     "hookimpl",
+    "json_float",
     "maximize",
     "minimize",
     "restore_rng",

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import math
 from abc import ABC, abstractmethod
 from collections.abc import Callable
 from dataclasses import dataclass
@@ -64,6 +65,12 @@ class Optimizer(ABC):
 def rng_state(rng: np.random.Generator) -> dict[str, Any]:
     """A numpy Generator's state as plain JSON (big ints are fine in JSON)."""
     return rng.bit_generator.state
+
+
+def json_float(value: float) -> float | str:
+    """A fitness for a plain-JSON state: finite floats as they are, inf and nan as strings that
+    float() reads back (strict JSON has neither; a failed evaluation is told as +inf)."""
+    return value if math.isfinite(value) else str(value)
 
 
 def restore_rng(rng: np.random.Generator, state: dict[str, Any]) -> None:

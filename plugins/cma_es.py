@@ -39,6 +39,7 @@ from metaopt import (
     Space,
     budget_param,
     hookimpl,
+    json_float,
     restore_rng,
     rng_state,
 )
@@ -95,7 +96,6 @@ class CMAES(Optimizer):
         if population == 1:
             raise ConfigError("cmaes: population must be 0 (the default) or at least 2, got 1")
         self.constants = StrategyConstants(space.dim, population or default_population(space.dim))
-        self.sigma0 = sigma0
         self.repair = repair
         n = space.dim
         self.generation = 0  # updates made; 0: the first (uniform or warm-start) generation
@@ -156,7 +156,7 @@ class CMAES(Optimizer):
         steps = self._bounded((best - self.mean) / self.sigma)
         step = k.weights @ steps
         self.mean = self.mean + self.sigma * step
-        whitened = self._axes @ ((self._axes.T @ step) / self._scales)  # C^(-1/2) step
+        whitened = self._axes @ self._eigen_coordinates(step)  # C^(-1/2) step
         self.p_sigma = (1.0 - k.c_sigma) * self.p_sigma + math.sqrt(
             k.c_sigma * (2.0 - k.c_sigma) * k.mu_eff
         ) * whitened
@@ -180,9 +180,14 @@ class CMAES(Optimizer):
     def _bounded(self, steps: np.ndarray) -> np.ndarray:
         """Steps no longer than max_step in C's metric (Hansen 2011): repaired and injected
         candidates cannot throw the distribution off; samples are hardly ever shortened."""
-        lengths = np.linalg.norm((steps @ self._axes) / self._scales, axis=1)
+        lengths = np.linalg.norm(self._eigen_coordinates(steps), axis=-1)
         factor = np.minimum(1.0, self.constants.max_step / np.maximum(lengths, 1e-300))
         return steps * factor[:, None]
+
+    def _eigen_coordinates(self, steps: np.ndarray) -> np.ndarray:
+        """D^-1 B^T y for a step y (or each row of a batch): its coordinates on C's axes, in
+        units of each axis's scale; their norm is the step's length in C's metric."""
+        return (steps @ self._axes) / self._scales
 
     def _decompose(self) -> None:
         """C = B diag(D^2) B^T, kept as the axes B and the scales D."""
@@ -202,7 +207,7 @@ class CMAES(Optimizer):
             "p_sigma": self.p_sigma.tolist(),
             "p_c": self.p_c.tolist(),
             "told_x": [x.tolist() for x in self._told_x],
-            "told_f": [f if math.isfinite(f) else str(f) for f in self._told_f],
+            "told_f": [json_float(f) for f in self._told_f],
         }
 
     def load_state_dict(self, state: dict[str, Any]) -> None:

@@ -53,6 +53,7 @@ from metaopt import (
     Space,
     budget_param,
     hookimpl,
+    json_float,
     restore_rng,
     rng_state,
 )
@@ -357,7 +358,7 @@ class HarmonySearch(Optimizer):
         """Memory, fitnesses, counters and generator states as plain JSON types."""
         return {
             "memory": self._memory[: self._filled].tolist(),
-            "fitness": [_json_float(f) for f in self._fitness[: self._filled].tolist()],
+            "fitness": [json_float(f) for f in self._fitness[: self._filled].tolist()],
             "best": self._best,
             "improvisations": self._improvisations,
             "told": self._told,
@@ -399,11 +400,6 @@ class HarmonySearch(Optimizer):
             self._draw_block(first=self._improvisations - position)
             self._position = self._prepared_end = position
         restore_rng(self.rng, state["rng"])
-
-
-def _json_float(value: float) -> float | str:
-    """Finite floats as they are; inf and nan as strings that float() reads back (strict JSON)."""
-    return value if math.isfinite(value) else str(value)
 
 
 PARAMS = (

@@ -19,7 +19,7 @@ BOX = [(-5.0, 5.0)] * 10
 
 
 def ellipsoid(x: np.ndarray) -> float:
-    """A rotated-free ellipsoid with condition 1e6, optimum at 1: needs a learned step shape."""
+    """An axis-aligned ellipsoid of condition 1e6, optimum at 1: needs a learned step shape."""
     scales = 1e6 ** (np.arange(len(x)) / (len(x) - 1))
     return float(np.sum(scales * (np.asarray(x) - 1.0) ** 2))
 
@@ -126,14 +126,21 @@ def test_batches_that_divide_the_population_give_the_same_run():
 def test_failed_evaluations_rank_last_and_the_state_stays_json():
     optimizer = CMAES(Space.from_bounds([-1.0] * 3, [1.0] * 3), 1, population=6, sigma0=0.3,
                       repair="clip", budget=100)  # fmt: skip
-    for generation in range(5):
+    first = optimizer.ask(6)
+    values = np.array([float(np.sum(x**2)) for x in first])
+    failed = int(np.argmin(values))  # the best point fails: it must not enter the mean
+    values[failed] = np.inf
+    optimizer.tell(first, values)
+    parents = first[np.argsort(values)[:3]]
+    assert np.allclose(optimizer.mean, optimizer.constants.weights @ ((parents + 1.0) / 2.0))
+    for generation in range(4):
         batch = optimizer.ask(6)
         values = np.array([float(np.sum(x**2)) for x in batch])
         values[generation % 6] = np.inf
         optimizer.tell(batch, values)
     state = json.loads(json.dumps(optimizer.state_dict(), allow_nan=False))
     assert np.isfinite(optimizer.sigma) and np.all(np.isfinite(optimizer.cov))
-    assert state["generation"] == 5
+    assert state["generation"] == 5  # the first generation and four updates
 
 
 def test_a_population_of_one_is_refused_in_one_line(tmp_path):
