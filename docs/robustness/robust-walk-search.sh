@@ -59,6 +59,13 @@
 # STAGE1B_BATCH=B asks B candidates per batch in stage 1b instead of 2 (two workers, HS's one at a
 # time); 0 is the optimizer's own (cmaes: a generation, 12, the same run as 2, with less waiting).
 # PIPELINES=N runs N pipelines instead of 3 (run seeds as above, p = 1 ... N).
+# STAGE1_RUNS=R runs R stage-1 runs per pipeline instead of 4 (run seeds 100 SEED + 10 p + 1 ... + R).
+# STAGE1B_START=pool runs every pipeline's stage 1 first and races all their bests together in one
+# basin race (robust-walk-sSEED-basins.csv); pipeline p's stage 1b starts from the p-th of that
+# ranking: the pipelines share their tickets, so a pipeline whose own runs found no walker takes
+# one from another's. The fifteenth search ran STAGE1B_START=pool STAGE1_RUNS=2
+# STAGE1_SET=duration=9 STAGE1B_OPTIMIZER=cmaes STAGE1B_BATCH=0
+# STAGE1B_SET="sigma0=0.05 flight_allowed=0.035 engine_score=worst worlds=pushes".
 # This is the thirteenth search, run after commit d228dc7 (nao-walk charges the flight
 # penalty past engine_cap). STAGE1B_START=all gives the twelfth's stage 1b, from all four
 # stage-1 bests; the twelfth (commit f1b7010) and the thirteenth's pilot ran before d228dc7.
@@ -68,18 +75,25 @@
 # script at commit 5ed7043, the seventh at 3c42de4, the sixth at 6e1fe34, the fifth at
 # 3c8db53, the fourth at ff6956d, the third at abce00d, the second at 9d03e62.
 set -euo pipefail
-seed=${1:?usage: [STAGE1B_BUDGET=N STAGE1B_OPTIMIZER=NAME STAGE1B_BATCH=B PIPELINES=N STAGE1B_RESAMPLE=K TOP=K STAGE1_ENGINE=E STAGE1_SET="NAME=VALUE ..." STAGE1B_START=all|raced STAGE1B_SET="NAME=VALUE ..."] robust-walk-search.sh SEED}
+seed=${1:?usage: [STAGE1B_BUDGET=N STAGE1B_OPTIMIZER=NAME STAGE1B_BATCH=B PIPELINES=N STAGE1_RUNS=R STAGE1B_RESAMPLE=K TOP=K STAGE1_ENGINE=E STAGE1_SET="NAME=VALUE ..." STAGE1B_START=all|raced|pool STAGE1B_SET="NAME=VALUE ..."] robust-walk-search.sh SEED}
 stage1b_budget=${STAGE1B_BUDGET:-600}
 stage1b_optimizer=${STAGE1B_OPTIMIZER:-hs}
 stage1b_batch=${STAGE1B_BATCH:-2}
 pipelines=${PIPELINES:-3}
-if ! [[ $pipelines =~ ^[1-9][0-9]*$ ]]; then
-    echo "PIPELINES must be a whole number, 1 or more; got '$pipelines'" >&2
-    exit 2
-fi
+stage1_runs=${STAGE1_RUNS:-4}
+for knob in PIPELINES STAGE1_RUNS; do
+    if ! [[ ${!knob:-1} =~ ^[1-9][0-9]*$ ]]; then
+        echo "$knob must be a whole number, 1 or more; got '${!knob}'" >&2
+        exit 2
+    fi
+done
 top=${TOP:-3}
 stage1_engine=${STAGE1_ENGINE:-mujoco}
 stage1b_start=${STAGE1B_START:-raced}
+case $stage1b_start in
+    raced | all | pool) ;;
+    *) echo "STAGE1B_START must be raced, all or pool; got '$stage1b_start'" >&2; exit 2 ;;
+esac
 stage1_set=()
 for pair in ${STAGE1_SET:-}; do stage1_set+=(--set "$pair"); done
 stage1b_args=()  # metaopt checks the values: a bad one stops the search with one line
@@ -93,23 +107,48 @@ walk=(--set controller=steered)
 first() { awk -F, -v n="$2" 'NR > 1 && NR <= n + 1 {print $2}' "$1"; }  # a ranking's N best
 run=0
 finals=()
-for p in $(seq 1 "$pipelines"); do
-    starts=()
-    for r in 1 2 3 4; do
-        metaopt run -o hs -p nao-walk --budget 1000 --seed $((100 * seed + 10 * p + r)) \
+stage1() {  # pipeline $1's stage-1 runs; their run ids go to ids
+    ids=()
+    for r in $(seq 1 "$stage1_runs"); do
+        metaopt run -o hs -p nao-walk --budget 1000 --seed $((100 * seed + 10 * $1 + r)) \
             "${walk[@]}" --set backend="$stage1_engine" --set flight_penalty=20 \
             ${stage1_set[@]+"${stage1_set[@]}"} --workers 2 --batch 2 --db "$db"
         run=$((run + 1))
-        starts+=(--start-from "$run")
+        ids+=("$run")
     done
-    if [ "$stage1b_start" = raced ]; then
-        basins="robust-walk-s$seed-p$p-basins.csv"
-        metaopt robustness $((run - 3)) $((run - 2)) $((run - 1)) "$run" --cells nominal \
-            --seeds 8 --seed 3 --goal "speed>=0.44" --set fitness=progress \
-            --set flight_penalty=50 --set duration=15 --workers 2 --db "$db" \
-            --ranking "$basins"
-        starts=(--start-from "$(first "$basins" 1)")
-    fi
+}
+race_basins() {  # $1: the ranking CSV; the rest: the runs whose bests are raced
+    local ranking=$1
+    shift
+    metaopt robustness "$@" --cells nominal \
+        --seeds 8 --seed 3 --goal "speed>=0.44" --set fitness=progress \
+        --set flight_penalty=50 --set duration=15 --workers 2 --db "$db" \
+        --ranking "$ranking"
+}
+if [ "$stage1b_start" = pool ]; then
+    pool=()
+    for p in $(seq 1 "$pipelines"); do
+        stage1 "$p"
+        pool+=("${ids[@]}")
+    done
+    basins="robust-walk-s$seed-basins.csv"
+    race_basins "$basins" "${pool[@]}"
+fi
+for p in $(seq 1 "$pipelines"); do
+    case $stage1b_start in
+        pool) starts=(--start-from "$(first "$basins" "$p" | tail -n 1)") ;;
+        raced)
+            stage1 "$p"
+            basins="robust-walk-s$seed-p$p-basins.csv"
+            race_basins "$basins" "${ids[@]}"
+            starts=(--start-from "$(first "$basins" 1)")
+            ;;
+        all)
+            stage1 "$p"
+            starts=()
+            for id in "${ids[@]}"; do starts+=(--start-from "$id"); done
+            ;;
+    esac
     metaopt run -o "$stage1b_optimizer" -p nao-walk --budget "$stage1b_budget" --seed $((10 * seed + p)) \
         "${starts[@]}" "${walk[@]}" --set flight_penalty=50 \
         --set backend=mujoco+pybullet+ode --set engine_score=mean --set engine_cap=6 \
