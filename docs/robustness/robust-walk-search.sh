@@ -63,9 +63,10 @@
 # STAGE1B_START=pool runs every pipeline's stage 1 first and races all their bests together in one
 # basin race (robust-walk-sSEED-basins.csv); pipeline p's stage 1b starts from the p-th of that
 # ranking: the pipelines share their tickets, so a pipeline whose own runs found no walker takes
-# one from another's. The fifteenth search ran STAGE1B_START=pool STAGE1_RUNS=2
-# STAGE1_SET=duration=9 STAGE1B_OPTIMIZER=cmaes STAGE1B_BATCH=0
-# STAGE1B_SET="sigma0=0.05 flight_allowed=0.035 engine_score=worst worlds=pushes".
+# one from another's. The pooled-basins searches (docs/robustness/searches.md) ran STAGE1B_START=pool
+# STAGE1_RUNS=2 STAGE1B_BUDGET=480 STAGE1B_OPTIMIZER=cmaes STAGE1B_BATCH=0
+# STAGE1B_SET="sigma0=0.05 flight_allowed=0.035 engine_score=worst worlds=pushes" on fresh seeds
+# 22-24; seed 21 ran it with STAGE1_SET=duration=9 and STAGE1B_BUDGET=600 (the lean stage 1).
 # This is the thirteenth search, run after commit d228dc7 (nao-walk charges the flight
 # penalty past engine_cap). STAGE1B_START=all gives the twelfth's stage 1b, from all four
 # stage-1 bests; the twelfth (commit f1b7010) and the thirteenth's pilot ran before d228dc7.
