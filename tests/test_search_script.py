@@ -1,0 +1,39 @@
+"""The robust-walk search script refuses a bad knob in one line, before any work is done."""
+
+from __future__ import annotations
+
+import shutil
+import subprocess
+from pathlib import Path
+
+import pytest
+
+SCRIPT = Path(__file__).parents[1] / "docs" / "robustness" / "robust-walk-search.sh"
+
+pytestmark = pytest.mark.skipif(shutil.which("bash") is None, reason="the script is bash")
+
+
+@pytest.mark.parametrize(
+    ("knob", "value", "accepted"),
+    [
+        ("PIPELINES", "abc", "a whole number, 1 or more"),
+        ("PIPELINES", "-1", "a whole number, 1 or more"),
+        ("STAGE1_RUNS", "0", "a whole number, 1 or more"),
+        ("STAGE1_RUNS", "00", "a whole number, 1 or more"),
+        ("STAGE1B_START", "best", "raced, all or pool"),
+    ],
+)
+def test_a_bad_knob_stops_the_search_with_one_line(tmp_path, knob, value, accepted):
+    done = subprocess.run(
+        ["bash", str(SCRIPT), "7"],
+        cwd=tmp_path,
+        env={"PATH": "/usr/bin:/bin", knob: value},
+        capture_output=True,
+        text=True,
+        timeout=30,
+    )
+    assert done.returncode == 2
+    lines = done.stderr.strip().splitlines()
+    assert len(lines) == 1, done.stderr
+    assert knob in lines[0] and accepted in lines[0] and repr(value) in lines[0]
+    assert list(tmp_path.iterdir()) == []  # no store, no CSV: refused before the first run
