@@ -67,6 +67,10 @@
 # STAGE1_RUNS=2 STAGE1B_BUDGET=480 STAGE1B_OPTIMIZER=cmaes STAGE1B_BATCH=0
 # STAGE1B_SET="sigma0=0.05 flight_allowed=0.035 engine_score=worst worlds=pushes" on fresh seeds
 # 22-24; seed 21 ran it with STAGE1_SET=duration=9 and STAGE1B_BUDGET=600 (the lean stage 1).
+# STAGE1_OPTIMIZER=NAME runs stage 1 with another optimizer than hs (its settings through
+# STAGE1_SET), STAGE1_BATCH=B with B candidates per batch instead of 2 (0: the optimizer's own):
+# STAGE1_OPTIMIZER=cmaes STAGE1_BATCH=0 is CMA-ES from a random first generation at its default
+# step, 0.3 of each range (docs/robustness/searches.md, CMA-ES in stage 1).
 # This is the thirteenth search, run after commit d228dc7 (nao-walk charges the flight
 # penalty past engine_cap). STAGE1B_START=all gives the twelfth's stage 1b, from all four
 # stage-1 bests; the twelfth (commit f1b7010) and the thirteenth's pilot ran before d228dc7.
@@ -76,12 +80,14 @@
 # script at commit 5ed7043, the seventh at 3c42de4, the sixth at 6e1fe34, the fifth at
 # 3c8db53, the fourth at ff6956d, the third at abce00d, the second at 9d03e62.
 set -euo pipefail
-seed=${1:?usage: [STAGE1B_BUDGET=N STAGE1B_OPTIMIZER=NAME STAGE1B_BATCH=B PIPELINES=N STAGE1_RUNS=R STAGE1B_RESAMPLE=K TOP=K STAGE1_ENGINE=E STAGE1_SET="NAME=VALUE ..." STAGE1B_START=all|raced|pool STAGE1B_SET="NAME=VALUE ..."] robust-walk-search.sh SEED}
+seed=${1:?usage: [STAGE1_OPTIMIZER=NAME STAGE1_BATCH=B STAGE1B_BUDGET=N STAGE1B_OPTIMIZER=NAME STAGE1B_BATCH=B PIPELINES=N STAGE1_RUNS=R STAGE1B_RESAMPLE=K TOP=K STAGE1_ENGINE=E STAGE1_SET="NAME=VALUE ..." STAGE1B_START=all|raced|pool STAGE1B_SET="NAME=VALUE ..."] robust-walk-search.sh SEED}
 stage1b_budget=${STAGE1B_BUDGET:-600}
 stage1b_optimizer=${STAGE1B_OPTIMIZER:-hs}
 stage1b_batch=${STAGE1B_BATCH:-2}
 pipelines=${PIPELINES:-3}
 stage1_runs=${STAGE1_RUNS:-4}
+stage1_optimizer=${STAGE1_OPTIMIZER:-hs}
+stage1_batch=${STAGE1_BATCH:-2}
 for knob in PIPELINES STAGE1_RUNS; do
     if ! [[ ${!knob:-1} =~ ^[1-9][0-9]*$ ]]; then
         echo "$knob must be a whole number, 1 or more; got '${!knob}'" >&2
@@ -111,9 +117,10 @@ finals=()
 stage1() {  # pipeline $1's stage-1 runs; their run ids go to ids
     ids=()
     for r in $(seq 1 "$stage1_runs"); do
-        metaopt run -o hs -p nao-walk --budget 1000 --seed $((100 * seed + 10 * $1 + r)) \
-            "${walk[@]}" --set backend="$stage1_engine" --set flight_penalty=20 \
-            ${stage1_set[@]+"${stage1_set[@]}"} --workers 2 --batch 2 --db "$db"
+        metaopt run -o "$stage1_optimizer" -p nao-walk --budget 1000 \
+            --seed $((100 * seed + 10 * $1 + r)) "${walk[@]}" --set backend="$stage1_engine" \
+            --set flight_penalty=20 ${stage1_set[@]+"${stage1_set[@]}"} --workers 2 \
+            --batch "$stage1_batch" --db "$db"
         run=$((run + 1))
         ids+=("$run")
     done
