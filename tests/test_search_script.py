@@ -37,3 +37,32 @@ def test_a_bad_knob_stops_the_search_with_one_line(tmp_path, knob, value, accept
     assert len(lines) == 1, done.stderr
     assert knob in lines[0] and accepted in lines[0] and repr(value) in lines[0]
     assert list(tmp_path.iterdir()) == []  # no store, no CSV: refused before the first run
+
+
+@pytest.mark.parametrize(
+    ("knob", "value", "says"),
+    [
+        ("STAGE1_OPTIMIZER", "bogus", "unknown optimizer 'bogus'"),
+        ("STAGE1_BATCH", "-1", "'--batch': -1 is not in the range"),
+    ],
+)
+def test_a_bad_stage1_setting_is_refused_by_metaopt_before_a_store_exists(
+    tmp_path, knob, value, says
+):
+    """The knobs handed to `metaopt run` as they are: metaopt's own check stops the search."""
+    metaopt = shutil.which("metaopt")
+    if metaopt is None:
+        pytest.skip("the metaopt command is not installed")
+    done = subprocess.run(
+        ["bash", str(SCRIPT), "7"],
+        cwd=tmp_path,
+        env={"PATH": f"{Path(metaopt).parent}:/usr/bin:/bin", knob: value},
+        capture_output=True,
+        text=True,
+        timeout=60,
+    )
+    assert done.returncode == 2
+    lines = done.stderr.strip().splitlines()
+    assert len(lines) == 1, done.stderr
+    assert says in lines[0]
+    assert list(tmp_path.iterdir()) == []
