@@ -21,6 +21,9 @@ pytestmark = pytest.mark.skipif(shutil.which("bash") is None, reason="the script
         ("STAGE1_RUNS", "0", "a whole number, 1 or more"),
         ("STAGE1_RUNS", "00", "a whole number, 1 or more"),
         ("STAGE1B_START", "best", "raced, all or pool"),
+        ("BASIN_FELL", "1.5", "a fall rate from 0 to 1"),
+        ("BASIN_FELL", "-0.1", "a fall rate from 0 to 1"),
+        ("BASIN_FELL", "5%", "a fall rate from 0 to 1"),
     ],
 )
 def test_a_bad_knob_stops_the_search_with_one_line(tmp_path, knob, value, accepted):
