@@ -24,6 +24,7 @@ pytestmark = pytest.mark.skipif(shutil.which("bash") is None, reason="the script
         ("BASIN_FELL", "1.5", "a fall rate from 0 to 1"),
         ("BASIN_FELL", "-0.1", "a fall rate from 0 to 1"),
         ("BASIN_FELL", "5%", "a fall rate from 0 to 1"),
+        ("RACE_FELL", "0,05", "a fall rate from 0 to 1"),
     ],
 )
 def test_a_bad_knob_stops_the_search_with_one_line(tmp_path, knob, value, accepted):

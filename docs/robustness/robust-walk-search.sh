@@ -75,6 +75,9 @@
 # that falls in more of its nominal episodes on any engine ranks by that margin, not by its
 # speed alone (a speed is measured up to the fall, so a fast gait that falls on two engines
 # ranked first; stage 1b from such a basin found no candidate that stays up).
+# RACE_FELL=RATE is the race's fall bound instead of 0.02: at 0.02 a gait falling in 4 % of
+# the race's episodes misses by as much as one that stands still (the margins are relative to
+# the bound), so the race chose slower, safer gaits over faster ones that fall now and then.
 # This is the thirteenth search, run after commit d228dc7 (nao-walk charges the flight
 # penalty past engine_cap). STAGE1B_START=all gives the twelfth's stage 1b, from all four
 # stage-1 bests; the twelfth (commit f1b7010) and the thirteenth's pilot ran before d228dc7.
@@ -84,7 +87,7 @@
 # script at commit 5ed7043, the seventh at 3c42de4, the sixth at 6e1fe34, the fifth at
 # 3c8db53, the fourth at ff6956d, the third at abce00d, the second at 9d03e62.
 set -euo pipefail
-seed=${1:?usage: [STAGE1_OPTIMIZER=NAME STAGE1_BATCH=B BASIN_FELL=RATE STAGE1B_BUDGET=N STAGE1B_OPTIMIZER=NAME STAGE1B_BATCH=B PIPELINES=N STAGE1_RUNS=R STAGE1B_RESAMPLE=K TOP=K STAGE1_ENGINE=E STAGE1_SET="NAME=VALUE ..." STAGE1B_START=all|raced|pool STAGE1B_SET="NAME=VALUE ..."] robust-walk-search.sh SEED}
+seed=${1:?usage: [STAGE1_OPTIMIZER=NAME STAGE1_BATCH=B BASIN_FELL=RATE RACE_FELL=RATE STAGE1B_BUDGET=N STAGE1B_OPTIMIZER=NAME STAGE1B_BATCH=B PIPELINES=N STAGE1_RUNS=R STAGE1B_RESAMPLE=K TOP=K STAGE1_ENGINE=E STAGE1_SET="NAME=VALUE ..." STAGE1B_START=all|raced|pool STAGE1B_SET="NAME=VALUE ..."] robust-walk-search.sh SEED}
 stage1b_budget=${STAGE1B_BUDGET:-600}
 stage1b_optimizer=${STAGE1B_OPTIMIZER:-hs}
 stage1b_batch=${STAGE1B_BATCH:-2}
@@ -98,14 +101,15 @@ for knob in PIPELINES STAGE1_RUNS; do
         exit 2
     fi
 done
-basin_goals=(--goal "speed>=0.44")
-if [ -n "${BASIN_FELL:-}" ]; then
-    if ! [[ $BASIN_FELL =~ ^(0(\.[0-9]+)?|1(\.0*)?|\.[0-9]+)$ ]]; then
-        echo "BASIN_FELL must be a fall rate from 0 to 1, e.g. 0.25; got '$BASIN_FELL'" >&2
+for knob in BASIN_FELL RACE_FELL; do
+    if ! [[ ${!knob:-0} =~ ^(0(\.[0-9]+)?|1(\.0*)?|\.[0-9]+)$ ]]; then
+        echo "$knob must be a fall rate from 0 to 1, e.g. 0.25; got '${!knob}'" >&2
         exit 2
     fi
-    basin_goals+=(--goal "fell<=$BASIN_FELL")
-fi
+done
+basin_goals=(--goal "speed>=0.44")
+if [ -n "${BASIN_FELL:-}" ]; then basin_goals+=(--goal "fell<=$BASIN_FELL"); fi
+race_fell=${RACE_FELL:-0.02}
 top=${TOP:-3}
 stage1_engine=${STAGE1_ENGINE:-mujoco}
 stage1b_start=${STAGE1B_START:-raced}
@@ -183,7 +187,7 @@ metaopt robustness "${finals[@]}" --top "$top" --seeds 1 --seed 1 --set fitness=
 # shellcheck disable=SC2046  # one word per finalist
 metaopt robustness $(first "robust-walk-s$seed-top-ranking.csv" 3) --seeds 10 --seed 2 \
     --set fitness=robust --set flight_penalty=100 \
-    --goal "speed>=0.44" --goal "fell<=0.02" --goal "|drift|<=0.3" --goal "flight<=0.05" \
+    --goal "speed>=0.44" --goal "fell<=$race_fell" --goal "|drift|<=0.3" --goal "flight<=0.05" \
     --workers 2 --db "$db" --csv "robust-walk-s$seed-race.csv" \
     --ranking "robust-walk-s$seed-race-ranking.csv" | tee "robust-walk-s$seed-race.txt"
 metaopt robustness "$(first "robust-walk-s$seed-race-ranking.csv" 1)" --seeds 10 --workers 2 \
