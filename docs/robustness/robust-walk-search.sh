@@ -80,7 +80,8 @@
 # the bound), so the race chose slower, safer gaits over faster ones that fall now and then.
 # The CMA-ES stage-1 searches (docs/robustness/searches.md) ran STAGE1_OPTIMIZER=cmaes
 # STAGE1_BATCH=0 BASIN_FELL=0.25 RACE_FELL=0.05 with the pooled-basins searches' knobs on fresh
-# seeds 26-28; seed 25 ran it without BASIN_FELL and RACE_FELL.
+# seeds 26-28; seed 25 ran it without BASIN_FELL and RACE_FELL; the one-seed pilot on seed 29
+# added STAGE1_ENGINE=mujoco+ode STAGE1_RUNS=1 (stage 1 scored by the worse of two engines).
 # This is the thirteenth search, run after commit d228dc7 (nao-walk charges the flight
 # penalty past engine_cap). STAGE1B_START=all gives the twelfth's stage 1b, from all four
 # stage-1 bests; the twelfth (commit f1b7010) and the thirteenth's pilot ran before d228dc7.
