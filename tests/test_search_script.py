@@ -13,6 +13,24 @@ SCRIPT = Path(__file__).parents[1] / "docs" / "robustness" / "robust-walk-search
 pytestmark = pytest.mark.skipif(shutil.which("bash") is None, reason="the script is bash")
 
 
+def refusal(tmp_path: Path, path: str, knob: str, value: str) -> str:
+    """The one stderr line of the script run with knob=value and PATH=path; asserts that it
+    exits 2 and leaves the working folder empty (no store, no CSV: refused before any work)."""
+    done = subprocess.run(
+        ["bash", str(SCRIPT), "7"],
+        cwd=tmp_path,
+        env={"PATH": path, knob: value},
+        capture_output=True,
+        text=True,
+        timeout=60,
+    )
+    assert done.returncode == 2
+    lines = done.stderr.strip().splitlines()
+    assert len(lines) == 1, done.stderr
+    assert list(tmp_path.iterdir()) == []
+    return lines[0]
+
+
 @pytest.mark.parametrize(
     ("knob", "value", "accepted"),
     [
@@ -28,19 +46,9 @@ pytestmark = pytest.mark.skipif(shutil.which("bash") is None, reason="the script
     ],
 )
 def test_a_bad_knob_stops_the_search_with_one_line(tmp_path, knob, value, accepted):
-    done = subprocess.run(
-        ["bash", str(SCRIPT), "7"],
-        cwd=tmp_path,
-        env={"PATH": "/usr/bin:/bin", knob: value},
-        capture_output=True,
-        text=True,
-        timeout=30,
-    )
-    assert done.returncode == 2
-    lines = done.stderr.strip().splitlines()
-    assert len(lines) == 1, done.stderr
-    assert knob in lines[0] and accepted in lines[0] and repr(value) in lines[0]
-    assert list(tmp_path.iterdir()) == []  # no store, no CSV: refused before the first run
+    """PATH holds no metaopt: a check that let the value through would end in exit 127."""
+    line = refusal(tmp_path, "/usr/bin:/bin", knob, value)
+    assert knob in line and accepted in line and repr(value) in line
 
 
 @pytest.mark.parametrize(
@@ -57,16 +65,4 @@ def test_a_bad_stage1_setting_is_refused_by_metaopt_before_a_store_exists(
     metaopt = shutil.which("metaopt")
     if metaopt is None:
         pytest.skip("the metaopt command is not installed")
-    done = subprocess.run(
-        ["bash", str(SCRIPT), "7"],
-        cwd=tmp_path,
-        env={"PATH": f"{Path(metaopt).parent}:/usr/bin:/bin", knob: value},
-        capture_output=True,
-        text=True,
-        timeout=60,
-    )
-    assert done.returncode == 2
-    lines = done.stderr.strip().splitlines()
-    assert len(lines) == 1, done.stderr
-    assert says in lines[0]
-    assert list(tmp_path.iterdir()) == []
+    assert says in refusal(tmp_path, f"{Path(metaopt).parent}:/usr/bin:/bin", knob, value)
