@@ -193,6 +193,7 @@ _CASES = {
     "runs --db": _db(["runs"]),
     "show RUN": _argument(["show"], _RUN_ID),
     "show --format": _option(["show", "1"], "--format", _not_in(["table", "csv", "json"])),
+    "show --recent": _option(["show", "1"], "--recent", _int_outside(1, MAX_INT64)),
     "show --db": _db(["show", "1"]),
     "export RUN": _argument(["export"], _RUN_ID),
     "export --format": _option(["export", "1"], "--format", _not_in(["csv", "json"])),

@@ -79,6 +79,31 @@ def test_a_resampled_run_reports_its_best_candidates_aggregate_everywhere(noisy_
     assert [e["candidate"] for e in as_json["evaluations"][:6]] == [0, 0, 0, 1, 1, 1]
 
 
+def test_show_summarises_the_last_evaluations_as_the_export_holds_them(noisy_run):
+    """`show --recent N`: the last N evaluations' median fitness and quartiles, each metric's
+    median, and a 0/1 metric's share (nao-walk's falls), equal to the exported evaluations'."""
+    folder, _ = noisy_run
+    rows = list(csv.DictReader(io.StringIO(in_process("export", "1", folder=folder))))[-12:]
+    shown = json.loads(in_process("show", "1", "--recent", "12", "--format", "json",
+                                  folder=folder))["recent"]  # fmt: skip
+    assert shown["evaluations"] == [24, 35] and shown["count"] == shown["succeeded"] == 12
+    fitness = [float(row["fitness"]) for row in rows]
+    lower, median, upper = statistics.quantiles(fitness, n=4, method="inclusive")
+    assert shown["fitness"] == {"lower_quartile": lower, "median": median, "upper_quartile": upper}
+    fell = [float(row["fell"]) for row in rows]
+    assert 0 < sum(fell) < 12  # noise 1 makes some of the episodes fall, not all
+    assert shown["metrics"]["fell"] == {"share": sum(fell) / 12, "count": 12}
+    speeds = [float(row["speed"]) for row in rows]
+    assert shown["metrics"]["speed"] == {"median": statistics.median(speeds), "count": 12}
+
+    table = in_process("show", "1", "--recent", "12", folder=folder)
+    assert "last 12 evaluations (24-35)" in table
+    assert f"{sum(fell) / 12:.0%} at 1 (share)" in table
+    everything = json.loads(in_process("show", "1", "--recent", "1000", "--format", "json",
+                                       folder=folder))["recent"]  # fmt: skip
+    assert everything["evaluations"] == [0, 35] and everything["count"] == 36
+
+
 def test_compare_medians_use_the_candidates_aggregate(tmp_path):
     experiment = tmp_path / "noisy.toml"
     experiment.write_text(
@@ -105,6 +130,8 @@ def test_a_run_whose_evaluations_all_fail_stops_and_says_why(tmp_path):
     assert "Traceback" not in done.stderr
     shown = json.loads(in_process("show", "1", "--format", "json", folder=tmp_path))
     assert shown["status"] == "failed" and "all 10 evaluations failed" in shown["message"]
+    assert shown["recent"]["succeeded"] == 0 and shown["recent"]["fitness"] is None
+    assert "fitness: all 10 failed" in in_process("show", "1", folder=tmp_path)
 
 
 @pytest.mark.parametrize(

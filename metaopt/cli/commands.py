@@ -31,6 +31,7 @@ from metaopt.cli.robustness import robustness_command, robustness_summary_comman
 from metaopt.errors import MetaoptError, SettingWarning
 from metaopt.plugins import registry
 from metaopt.reporting import display
+from metaopt.reporting.recent import DEFAULT_WINDOW, recent_figures
 from metaopt.run_loop import (
     AGGREGATES,
     MODES,
@@ -359,18 +360,28 @@ def runs_command(fmt: str, db_path: str) -> None:
 
 @main.command("show")
 @click.argument("run_id")
+@click.option(
+    "--recent",
+    type=click.IntRange(min=1, max=MAX_INT64),
+    default=DEFAULT_WINDOW,
+    show_default=True,
+    metavar="N",
+    help="Summarise the run's last N evaluations: median fitness and quartiles, each "
+    "metric's median (a 0/1 metric's share, e.g. of falls), beside the best.",
+)
 @format_option
 @db_option
-def show_command(run_id: str, fmt: str, db_path: str) -> None:
-    """Show everything stored about one run."""
+def show_command(run_id: str, recent: int, fmt: str, db_path: str) -> None:
+    """Show everything stored about one run, and where its last evaluations stand."""
     require_store(db_path)
     with RunStore(db_path) as store:
         record = store.run(run_id)
         counts, best = store.evaluation_counts(record.id), store.best_candidate(record)
+        figures = recent_figures(store.last_evaluations(record.id, recent))
     if fmt == "table":
-        console.print(display.run_detail(record, counts, best))
+        console.print(display.run_detail(record, counts, best, figures))
     else:
-        print_records(display.run_document(record, counts, best), fmt)
+        print_records(display.run_document(record, counts, best, figures), fmt)
 
 
 @main.command("export")

@@ -25,6 +25,7 @@ from rich.table import Table
 from metaopt.assessment.replay import Replay, ReplaySource, SeedReplay
 from metaopt.assessment.search_medians import Medians, missed_goals
 from metaopt.params import Param
+from metaopt.reporting.recent import RecentFigures
 from metaopt.run_loop import RunResult
 from metaopt.storage.run_store import CandidateRecord, RunRecord
 
@@ -246,9 +247,13 @@ def runs_table(
 
 
 def run_document(
-    run: RunRecord, counts: tuple[int, int], best: CandidateRecord | None
+    run: RunRecord,
+    counts: tuple[int, int],
+    best: CandidateRecord | None,
+    recent: RecentFigures | None = None,
 ) -> dict[str, Any]:
-    """`metaopt show RUN --format json|csv`: everything stored about one run, best included."""
+    """`metaopt show RUN --format json|csv`: everything stored about one run, best included,
+    and the figures of its last evaluations."""
     return {
         "id": run.id,
         "status": run.status,
@@ -275,12 +280,37 @@ def run_document(
             "metrics": best.metrics,
             "x": dict(zip([v["name"] for v in run.space], best.x.tolist())),
         },
+        "recent": None if recent is None else recent_document(recent),
         "versions": run.versions,
     }
 
 
-def run_detail(run: RunRecord, counts: tuple[int, int], best: CandidateRecord | None) -> Table:
-    """`metaopt show RUN`: everything stored about one run."""
+def recent_document(recent: RecentFigures) -> dict[str, Any]:
+    """A run's last evaluations as data: their range, fitness quartiles, and each metric's
+    median or share ({"median": v} or {"share": v}, with the evaluations that report it)."""
+    quartiles = recent.fitness_quartiles
+    return {
+        "evaluations": [recent.first, recent.last],
+        "count": recent.evaluations,
+        "succeeded": recent.succeeded,
+        "fitness": None
+        if quartiles is None
+        else dict(zip(("lower_quartile", "median", "upper_quartile"), quartiles)),
+        "metrics": {
+            m.name: {"share" if m.is_share else "median": m.value, "count": m.count}
+            for m in recent.metrics
+        },
+    }
+
+
+def run_detail(
+    run: RunRecord,
+    counts: tuple[int, int],
+    best: CandidateRecord | None,
+    recent: RecentFigures | None = None,
+) -> Table:
+    """`metaopt show RUN`: everything stored about one run, and where its last evaluations
+    stand beside its best."""
     table = Table(title=f"run {run.id}", title_justify="left", show_header=False)
     table.add_column("", style="bold", overflow="fold")
     table.add_column("", overflow="fold")
@@ -302,8 +332,34 @@ def run_detail(run: RunRecord, counts: tuple[int, int], best: CandidateRecord | 
             table.add_row(f"  {name}", format_number(value))
         for variable, value in zip(run.space, best.x):
             table.add_row(f"  {variable['name']}", format_number(float(value)))
+    if recent is not None:
+        _recent_rows(table, recent)
     table.add_row("versions", ", ".join(f"{k} {v}" for k, v in run.versions.items()))
     return table
+
+
+def _recent_rows(table: Table, recent: RecentFigures) -> None:
+    """The last evaluations' rows of `metaopt show`: fitness median and quartiles, then each
+    metric's median, or its share of evaluations where it is 1 (a flag such as a fall)."""
+    failed = recent.evaluations - recent.succeeded
+    heading = f"last {recent.evaluations} evaluations ({recent.first}-{recent.last})"
+    if recent.fitness_quartiles is None:
+        table.add_row(heading, f"fitness: all {failed} failed")
+        return
+    lower, median, upper = recent.fitness_quartiles
+    failures = f", {failed} failed" if failed else ""
+    table.add_row(
+        heading,
+        f"median fitness {format_number(median)} (quartiles {format_number(lower)} to "
+        f"{format_number(upper)}{failures})",
+    )
+    for metric in recent.metrics:
+        # a metric some evaluations lack (nao-walk's flight: none after a fall) says its count
+        among = f" of {metric.count}" if metric.count != recent.succeeded else ""
+        if metric.is_share:
+            table.add_row(f"  {metric.name}", f"{metric.value:.0%} at 1 (share{among})")
+        else:
+            table.add_row(f"  {metric.name}", f"{format_number(metric.value)} (median{among})")
 
 
 def reflow(text: str) -> str:

@@ -483,6 +483,15 @@ class RunStore:
                 finished_at=finished,
             )
 
+    def last_evaluations(self, run_id: int, count: int) -> list[EvaluationRecord]:
+        """The run's ``count`` stored evaluations of highest index (all, when it has fewer),
+        in index order."""
+        row = self._connection.execute(
+            "SELECT idx FROM evaluations WHERE run_id = ? ORDER BY idx DESC LIMIT 1 OFFSET ?",
+            (run_id, count - 1),
+        ).fetchone()
+        return list(self.evaluations(run_id, start=0 if row is None else row[0]))
+
     def read(self, query: str, parameters: tuple = ()) -> list[tuple]:
         """The rows of a read-only query (for the tables that extensions of the store add)."""
         return self._connection.execute(query, parameters).fetchall()

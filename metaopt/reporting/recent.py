@@ -1,0 +1,71 @@
+"""Where a run stands, as its last evaluations say: the median fitness of a window of recent
+evaluations and each metric's median (a 0/1 metric's share), beside the best. A run's best is
+the luckiest of many noisy scores; its recent evaluations show whether the search still climbs,
+and how many of its candidates fail the task (e.g. nao-walk's share of falls)."""
+
+from __future__ import annotations
+
+import statistics
+from collections.abc import Iterable
+from dataclasses import dataclass
+
+from metaopt.storage.run_store import EvaluationRecord
+
+#: evaluations in the window of `metaopt show` unless --recent says otherwise
+DEFAULT_WINDOW = 100
+
+
+@dataclass(frozen=True)
+class MetricFigure:
+    """A metric over the window: its median, or for a metric that is 0 or 1 in every
+    evaluation that reports it (a flag such as nao-walk's ``fell``), the share of 1s."""
+
+    name: str
+    value: float
+    is_share: bool
+    count: int  # evaluations that report the metric
+
+
+@dataclass(frozen=True)
+class RecentFigures:
+    """The last ``window`` evaluations of a run (fewer when it has fewer): index range,
+    how many succeeded, their fitness quartiles and their metrics."""
+
+    first: int
+    last: int
+    evaluations: int
+    succeeded: int
+    fitness_quartiles: tuple[float, float, float] | None  # None: none succeeded
+    metrics: tuple[MetricFigure, ...]
+
+
+def recent_figures(evaluations: Iterable[EvaluationRecord]) -> RecentFigures | None:
+    """The figures of these evaluations (a run's last window, in index order); None when
+    there are none."""
+    window = list(evaluations)
+    if not window:
+        return None
+    fitnesses = [e.fitness for e in window if e.fitness is not None]
+    quartiles = _quartiles(fitnesses) if fitnesses else None
+    values: dict[str, list[float]] = {}
+    for evaluation in window:
+        for name, value in evaluation.metrics.items():
+            values.setdefault(name, []).append(float(value))
+    metrics = tuple(_metric(name, found) for name, found in values.items())
+    return RecentFigures(
+        window[0].index, window[-1].index, len(window), len(fitnesses), quartiles, metrics
+    )
+
+
+def _metric(name: str, values: list[float]) -> MetricFigure:
+    if all(value in (0.0, 1.0) for value in values):
+        return MetricFigure(name, sum(values) / len(values), True, len(values))
+    return MetricFigure(name, statistics.median(values), False, len(values))
+
+
+def _quartiles(values: list[float]) -> tuple[float, float, float]:
+    """Lower quartile, median, upper quartile (inclusive method: one value is its own)."""
+    if len(values) == 1:
+        return values[0], values[0], values[0]
+    lower, middle, upper = statistics.quantiles(values, n=4, method="inclusive")
+    return lower, middle, upper
