@@ -77,6 +77,11 @@ class RunSettings:
     common_seeds: bool = False
     #: stop once a fitness this good is found: at or below it (minimize), at or above (maximize)
     target: float | None = None
+    #: seconds of wall time (from this start or resume, the workers' start-up included) after
+    #: which no more candidates are asked: the batch in flight finishes and the run ends
+    #: finished, its budget unspent (None = no limit). In sync mode the evaluations done are
+    #: the first ones of the same run (seed, budget) given more time.
+    max_time: float | None = None
     #: warm start (metaopt.warm_start): the run's first start_points candidates are these
     #: points and points drawn within ±start_spread of each range around them in turn, in
     #: place of the optimizer's first asks (0 points = the optimizer's initial population);
@@ -110,6 +115,8 @@ class RunSettings:
             raise ConfigError(f"time limit must be positive seconds, got {self.time_limit}")
         if self.target is not None and not math.isfinite(self.target):
             raise ConfigError(f"target must be a finite fitness, got {self.target}")
+        if self.max_time is not None and not 0 < self.max_time < math.inf:
+            raise ConfigError(f"max time must be positive, finite seconds, got {self.max_time}")
         if not 0.0 <= self.start_spread <= 1.0:
             raise ConfigError(
                 f"start spread must be a share of each range in [0, 1], got {self.start_spread}"
@@ -332,6 +339,7 @@ class _Session:
         #: the optimizer's (minimizing) score at which the run stops
         self.target_score = -math.inf if target is None else self.sign * target
         self.best: tuple[float, np.ndarray, dict[str, float]] | None = None
+        self.deadline = math.inf  # perf_counter() past which no candidate is asked (max_time)
         self.reusable: dict[int, EvaluationRecord] = {}
         self.last_checkpoint = time.perf_counter()
         settings = self.settings
@@ -373,6 +381,8 @@ class _Session:
         # Starting and stopping the executor's workers (a Dask cluster: seconds) is part of the
         # run's cost: its wall time counts both.
         started = time.perf_counter() - executor.startup_time
+        if self.settings.max_time is not None:
+            self.deadline = started + self.settings.max_time
         status, message = "failed", None
         if progress is not None:
             progress.start(self.total, self.stored)
@@ -385,6 +395,11 @@ class _Session:
             if self.best is None:
                 raise RunFailed(self._why_failed())
             status = "finished"
+            if self.stored < self.total and self.out_of_time and not self.target_met:
+                message = (
+                    f"stopped at its max time of {self.settings.max_time:g} s after "
+                    f"{self.stored} of {self.total} evaluations"
+                )
         except RunFailed as error:
             message = str(error)
             raise
@@ -425,7 +440,7 @@ class _Session:
         batch_size = self.settings.batch or self.optimizer.batch_size
         self._warn_of_waiting_workers(batch_size, executor.workers)
         next_index = self.told_below
-        while next_index < self.total and not self.target_reached:
+        while next_index < self.total and not self.stopping:
             count = min(batch_size, (self.total - next_index) // self.resample)
             first = next_index // self.resample
             candidates = [
@@ -450,11 +465,9 @@ class _Session:
                 self._tell_one(candidate, progress)
             else:
                 in_flight.update(self._submit(executor, [candidate]))
-        while in_flight or (next_index < self.total and not self.target_reached):
+        while in_flight or (next_index < self.total and not self.stopping):
             while (
-                len(in_flight) < executor.capacity
-                and next_index < self.total
-                and not self.target_reached
+                len(in_flight) < executor.capacity and next_index < self.total and not self.stopping
             ):
                 x = self._ask(next_index // self.resample, 1)[0]
                 candidate = _Candidate(next_index // self.resample, x, [None] * self.resample)
@@ -478,9 +491,18 @@ class _Session:
         return np.concatenate([starting, self.optimizer.ask(count - len(starting))])
 
     @property
-    def target_reached(self) -> bool:
-        """A fitness at the target or better has been found (never without a target)."""
+    def stopping(self) -> bool:
+        """No more candidates are asked: a fitness at the target or better has been found
+        (never without a target), or the run's max time has passed (never without one)."""
+        return self.target_met or self.out_of_time
+
+    @property
+    def target_met(self) -> bool:
         return self.best_score <= self.target_score
+
+    @property
+    def out_of_time(self) -> bool:
+        return time.perf_counter() >= self.deadline
 
     def _tell_one(self, candidate: _Candidate, progress: Progress | None) -> None:
         self.optimizer.tell(candidate.x[None, :], np.array([self._score(candidate)]))

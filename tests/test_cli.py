@@ -115,3 +115,36 @@ def test_run_stops_at_the_target_and_refuses_a_non_finite_one(tmp_path):
     assert len(fitness) < 20000 and fitness[-1] <= 0.01 < min(fitness[:-1])
     bad = metaopt_cli("run", "-o", "hs", "-p", "sphere", "--target", "inf", cwd=tmp_path, env=BASIC)
     assert bad.returncode == 2 and "target must be a finite fitness" in bad.stderr
+
+
+def test_run_stops_at_its_max_time_having_done_what_a_longer_run_does_first(tmp_path):
+    """--max-time ends the run finished, its budget unspent, and says so; its evaluations are
+    the first ones of the same run given more time (sync: the seed and budget decide them)."""
+    for max_time in ("0.8", "1.6"):
+        done = metaopt_cli(
+            "run", "-o", "hs", "-p", "sphere", "--budget", "10000000", "--seed", "3",
+            "--batch", "4", "--max-time", max_time, cwd=tmp_path, env=BASIC,
+        )  # fmt: skip
+        assert done.returncode == 0, done.stderr
+    shown = [
+        json.loads(metaopt_cli("show", run, "--format", "json", cwd=tmp_path).stdout)
+        for run in ("1", "2")
+    ]
+    counts = [run["evaluations"] for run in shown]
+    assert 0 < counts[0] < counts[1] < 10_000_000
+    assert shown[0]["status"] == "finished"
+    assert shown[0]["message"] == (
+        f"stopped at its max time of 0.8 s after {counts[0]} of 10000000 evaluations"
+    )
+    assert shown[1]["settings"]["max_time"] == 1.6 and shown[1]["wall_time"] < 1.6 + 5
+    assert counts[0] % 4 == 0  # the batch in flight finished
+    runs = [
+        [
+            {k: v for k, v in e.items() if k != "wall_time"}  # the one thing timing decides
+            for e in json.loads(
+                metaopt_cli("export", run, "--format", "json", cwd=tmp_path).stdout
+            )["evaluations"]
+        ]
+        for run in ("1", "2")
+    ]
+    assert runs[0] == runs[1][: counts[0]]

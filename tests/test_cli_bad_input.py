@@ -158,6 +158,17 @@ _CASES = {
         ),
         also=("time limit",),
     ),
+    "run --max-time": _option(
+        RUN_BASE,
+        "--max-time",
+        st.one_of(
+            st.floats(max_value=0).map(repr),
+            st.floats(min_value=1e9, exclude_min=True).map(repr),
+            st.just("nan"),
+            _text().filter(lambda t: not _is_float(t)),
+        ),
+        also=("max time",),
+    ),
     "run --set": _set(RUN_BASE),
     "run --start-from": _option(
         RUN_BASE, "--start-from", st.one_of(_RUN_ID, st.sampled_from(["hs_walk", "stride_mujoco"]))

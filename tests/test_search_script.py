@@ -43,12 +43,19 @@ def refusal(tmp_path: Path, path: str, knob: str, value: str) -> str:
         ("BASIN_FELL", "-0.1", "a fall rate from 0 to 1"),
         ("BASIN_FELL", "5%", "a fall rate from 0 to 1"),
         ("RACE_FELL", "0,05", "a fall rate from 0 to 1"),
+        ("DEADLINE", "30m", "a whole number, 1 or more"),
     ],
 )
 def test_a_bad_knob_stops_the_search_with_one_line(tmp_path, knob, value, accepted):
     """PATH holds no metaopt: a check that let the value through would end in exit 127."""
     line = refusal(tmp_path, "/usr/bin:/bin", knob, value)
     assert knob in line and accepted in line and repr(value) in line
+
+
+def test_a_deadline_needs_every_stage_1_first(tmp_path):
+    """Stage 1b's share of the time left is known only once every stage 1 has run."""
+    line = refusal(tmp_path, "/usr/bin:/bin", "DEADLINE", "1800")
+    assert "DEADLINE needs STAGE1B_START=pool" in line and "raced" in line
 
 
 @pytest.mark.parametrize(

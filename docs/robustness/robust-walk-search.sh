@@ -82,6 +82,10 @@
 # STAGE1_BATCH=0 BASIN_FELL=0.25 RACE_FELL=0.05 with the pooled-basins searches' knobs on fresh
 # seeds 26-28; seed 25 ran it without BASIN_FELL and RACE_FELL; the one-seed pilot on seed 29
 # added STAGE1_ENGINE=mujoco+ode STAGE1_RUNS=1 (stage 1 scored by the worse of two engines).
+# DEADLINE=SECONDS fits the search to a wall-clock limit (with STAGE1B_START=pool, where every
+# stage 1 comes first): each stage 1b gets the time left to the deadline, less 330 s for the
+# re-check, race and final table (253-294 s on seeds 22-24), shared among the pipelines still
+# to run (metaopt run --max-time; STAGE1B_BUDGET stays the most it evaluates).
 # This is the thirteenth search, run after commit d228dc7 (nao-walk charges the flight
 # penalty past engine_cap). STAGE1B_START=all gives the twelfth's stage 1b, from all four
 # stage-1 bests; the twelfth (commit f1b7010) and the thirteenth's pilot ran before d228dc7.
@@ -91,7 +95,7 @@
 # script at commit 5ed7043, the seventh at 3c42de4, the sixth at 6e1fe34, the fifth at
 # 3c8db53, the fourth at ff6956d, the third at abce00d, the second at 9d03e62.
 set -euo pipefail
-seed=${1:?usage: [STAGE1_OPTIMIZER=NAME STAGE1_BATCH=B BASIN_FELL=RATE RACE_FELL=RATE STAGE1B_BUDGET=N STAGE1B_OPTIMIZER=NAME STAGE1B_BATCH=B PIPELINES=N STAGE1_RUNS=R STAGE1B_RESAMPLE=K TOP=K STAGE1_ENGINE=E STAGE1_SET="NAME=VALUE ..." STAGE1B_START=all|raced|pool STAGE1B_SET="NAME=VALUE ..."] robust-walk-search.sh SEED}
+seed=${1:?usage: [DEADLINE=SECONDS STAGE1_OPTIMIZER=NAME STAGE1_BATCH=B BASIN_FELL=RATE RACE_FELL=RATE STAGE1B_BUDGET=N STAGE1B_OPTIMIZER=NAME STAGE1B_BATCH=B PIPELINES=N STAGE1_RUNS=R STAGE1B_RESAMPLE=K TOP=K STAGE1_ENGINE=E STAGE1_SET="NAME=VALUE ..." STAGE1B_START=all|raced|pool STAGE1B_SET="NAME=VALUE ..."] robust-walk-search.sh SEED}
 stage1b_budget=${STAGE1B_BUDGET:-600}
 stage1b_optimizer=${STAGE1B_OPTIMIZER:-hs}
 stage1b_batch=${STAGE1B_BATCH:-2}
@@ -99,7 +103,7 @@ pipelines=${PIPELINES:-3}
 stage1_runs=${STAGE1_RUNS:-4}
 stage1_optimizer=${STAGE1_OPTIMIZER:-hs}
 stage1_batch=${STAGE1_BATCH:-2}
-for knob in PIPELINES STAGE1_RUNS; do
+for knob in PIPELINES STAGE1_RUNS DEADLINE; do
     if ! [[ ${!knob:-1} =~ ^[1-9][0-9]*$ ]]; then
         echo "$knob must be a whole number, 1 or more; got '${!knob}'" >&2
         exit 2
@@ -121,6 +125,12 @@ case $stage1b_start in
     raced | all | pool) ;;
     *) echo "STAGE1B_START must be raced, all or pool; got '$stage1b_start'" >&2; exit 2 ;;
 esac
+if [ -n "${DEADLINE:-}" ] && [ "$stage1b_start" != pool ]; then
+    echo "DEADLINE needs STAGE1B_START=pool (every stage 1 before the first stage 1b); got" \
+        "STAGE1B_START=$stage1b_start" >&2
+    exit 2
+fi
+later_stages=330  # seconds DEADLINE keeps for the re-check, race and final table
 stage1_set=()
 for pair in ${STAGE1_SET:-}; do stage1_set+=(--set "$pair"); done
 stage1b_args=()  # metaopt checks the values: a bad one stops the search with one line
@@ -177,8 +187,13 @@ for p in $(seq 1 "$pipelines"); do
             for id in "${ids[@]}"; do starts+=(--start-from "$id"); done
             ;;
     esac
+    limit=()
+    if [ -n "${DEADLINE:-}" ]; then  # the time left, shared among this pipeline and the rest
+        share=$(((DEADLINE - SECONDS - later_stages) / (pipelines - p + 1)))
+        limit=(--max-time "$((share > 1 ? share : 1))")
+    fi
     metaopt run -o "$stage1b_optimizer" -p nao-walk --budget "$stage1b_budget" --seed $((10 * seed + p)) \
-        "${starts[@]}" "${walk[@]}" --set flight_penalty=50 \
+        "${starts[@]}" "${walk[@]}" ${limit[@]+"${limit[@]}"} --set flight_penalty=50 \
         --set backend=mujoco+pybullet+ode --set engine_score=mean --set engine_cap=6 \
         --set noise=0.1 --set fitness=progress ${stage1b_args[@]+"${stage1b_args[@]}"} \
         --workers 2 --batch "$stage1b_batch" --db "$db"

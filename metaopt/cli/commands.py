@@ -198,6 +198,15 @@ def list_plugins(name: str | None) -> None:
     help="Seconds per evaluation before it is stopped and stored as failed.",
 )
 @click.option(
+    "--max-time",
+    type=click.FloatRange(min=0, min_open=True, max=1e9),
+    default=None,
+    metavar="SECONDS",
+    help="Stop asking for candidates once the run has taken this long (the batch in flight "
+    "finishes): it ends finished, its budget unspent. Not --time-limit, which bounds one "
+    "evaluation.",
+)
+@click.option(
     "--target",
     type=float,
     default=None,
@@ -240,6 +249,7 @@ def run_command(
     aggregate: str,
     common_seeds: bool,
     time_limit: float | None,
+    max_time: float | None,
     target: float | None,
     start_from: tuple[str, ...],
     start_spread: float,
@@ -272,6 +282,7 @@ def run_command(
             time_limit,
             common_seeds=common_seeds,
             target=target,
+            max_time=max_time,
             start=[[float(value) for value in start.x] for start in starts] or None,
             start_spread=start_spread,
             start_points=start_points,

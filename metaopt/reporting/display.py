@@ -180,7 +180,7 @@ def replay_table(replay: Replay) -> Table:
 
 def settings_text(settings: dict[str, Any]) -> str:
     """A run's scheduling settings in a few words: 'sync', 'async, resample 3 (mean), limit
-    2 s', 'sync, started from stride_mujoco (20 points within 0.05)'."""
+    2 s, max time 600 s', 'sync, started from stride_mujoco (20 points within 0.05)'."""
     parts = [settings.get("mode", "sync")]
     if settings.get("batch"):
         parts.append(f"batch {settings['batch']}")
@@ -190,6 +190,8 @@ def settings_text(settings: dict[str, Any]) -> str:
         parts.append("common seeds")
     if settings.get("time_limit") is not None:
         parts.append(f"limit {settings['time_limit']:g} s")
+    if settings.get("max_time") is not None:
+        parts.append(f"max time {settings['max_time']:g} s")
     if settings.get("start") is not None:
         parts.append(
             f"started from {settings.get('start_from') or 'a given point'} "
