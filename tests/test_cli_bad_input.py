@@ -71,7 +71,7 @@ _RUN_ID = st.one_of(
 RUN_BASE = ["run", "-o", "hs", "-p", "sphere", "--budget", "5", "--set", "dim=2"]
 COMPARE_BASE = ["compare", "-o", "hs", "-p", "sphere", "--seeds", "1", "--budget", "5"]
 COMMANDS = ["list", "run", "resume", "runs", "show", "export", "replay", "report", "compare",
-            "robustness", "new"]  # fmt: skip
+            "robustness", "robustness-summary", "robustness-rank", "new"]  # fmt: skip
 #: Every installed name, so that a generated "unknown" name never names a real plugin.
 OPTIMIZERS, PROBLEMS = sorted(registry().optimizers), sorted(registry().problems)
 PLUGINS = sorted(name for table in registry().tables().values() for name in table)

@@ -40,6 +40,18 @@ class SearchTable:
 def read_table(path: Path) -> SearchTable:
     """The whole-table rows of the one candidate in a `metaopt robustness --csv` file;
     ConfigError naming the file and what is wrong otherwise."""
+    tables = read_tables(path)
+    if len(tables) != 1:
+        raise ConfigError(
+            f"{path}: holds {len(tables)} candidates ({', '.join(t.candidate for t in tables)}); "
+            "give each search's final table, of its one chosen candidate"
+        )
+    return tables[0]
+
+
+def read_tables(path: Path) -> list[SearchTable]:
+    """The whole-table rows of every candidate in a `metaopt robustness --csv` file, in the
+    file's order (its ranking's); ConfigError naming the file and what is wrong otherwise."""
     try:
         with path.open(newline="", encoding="utf-8") as handle:
             reader = csv.DictReader(handle)
@@ -56,22 +68,24 @@ def read_table(path: Path) -> SearchTable:
         )
     metrics = [c.removesuffix("_median") for c in header[len(CSV_COLUMNS):]
                if not c.endswith(_SPREAD)]  # fmt: skip
-    totals = [row for row in rows if row["cell"] == WHOLE_TABLE]
-    candidates = sorted({row["candidate"] for row in totals})
-    if len(candidates) != 1:
-        raise ConfigError(
-            f"{path}: holds {len(candidates)} candidates ({', '.join(candidates) or 'none'}); "
-            "give each search's final table, of its one chosen candidate"
-        )
+    totals: dict[str, list[dict[str, str]]] = {}
+    for row in rows:
+        if row["cell"] == WHOLE_TABLE:
+            totals.setdefault(row["candidate"], []).append(row)
+    if not totals:
+        raise ConfigError(f"{path}: holds no candidate's whole-table rows")
     try:
-        figures = {
-            row["engine"]: {m: float(row[m if m in row else f"{m}_median"]) for m in metrics}
-            for row in totals
-        }
-        failed = {row["engine"]: int(row["failed"]) for row in totals}
+        return [
+            SearchTable(
+                str(path), candidate, found[0]["table_version"],
+                {row["engine"]: {m: float(row[m if m in row else f"{m}_median"])
+                                 for m in metrics} for row in found},
+                {row["engine"]: int(row["failed"]) for row in found},
+            )
+            for candidate, found in totals.items()
+        ]  # fmt: skip
     except (TypeError, ValueError) as error:
         raise ConfigError(f"{path}: a whole-table value is not a number: {error}") from None
-    return SearchTable(str(path), candidates[0], totals[0]["table_version"], figures, failed)
 
 
 def check_alike(tables: Sequence[SearchTable]) -> None:

@@ -27,7 +27,11 @@ from metaopt.cli.compare import compare
 from metaopt.cli.new import new
 from metaopt.cli.output import format_option, output_file_option, print_records
 from metaopt.cli.report import report, write_replay_video
-from metaopt.cli.robustness import robustness_command, robustness_summary_command
+from metaopt.cli.robustness import (
+    robustness_command,
+    robustness_rank_command,
+    robustness_summary_command,
+)
 from metaopt.errors import MetaoptError, SettingWarning
 from metaopt.plugins import registry
 from metaopt.reporting import display
@@ -461,3 +465,4 @@ main.add_command(report)
 main.add_command(compare)
 main.add_command(robustness_command)
 main.add_command(robustness_summary_command)
+main.add_command(robustness_rank_command)

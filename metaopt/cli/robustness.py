@@ -10,7 +10,7 @@ from pathlib import Path
 
 import click
 
-from metaopt.assessment import robustness, search_medians
+from metaopt.assessment import goal_ranking, robustness, search_medians
 from metaopt.assessment.candidates import Candidate, find_candidates
 from metaopt.cli.common import (
     MAX_INT64,
@@ -241,3 +241,42 @@ def robustness_summary_command(
     if csv_path is not None:
         search_medians.write_medians(csv_path, tables, summary)
         console.print(f"wrote {csv_path}")
+
+
+@click.command("robustness-rank")
+@click.argument(
+    "csv_paths", metavar="CSV...", nargs=-1, required=True,
+    type=click.Path(dir_okay=False, path_type=Path),
+)  # fmt: skip
+@click.option(
+    "--goal",
+    "goal_texts",
+    multiple=True,
+    required=True,
+    metavar="METRIC>=VALUE",
+    help="A bound on a metric's median (a rate's value) over each engine's whole table, as "
+    "robustness --goal.",
+)
+@output_file_option(
+    "--ranking",
+    "ranking_path",
+    "Write the ranking as CSV here: rank, file, candidate, goals missed, goal margin, whether "
+    "it meets the goals.",
+    suffix=".csv",
+)
+def robustness_rank_command(
+    csv_paths: tuple[Path, ...], goal_texts: tuple[str, ...], ranking_path: Path | None
+) -> None:
+    """Rank the candidates of robustness tables (robustness --csv, e.g. a race's) again
+    against other goals, from the files alone: by their smallest margin to a goal on any
+    engine, as robustness --goal ranks, without evaluating anything. Equal margins keep the
+    files' order."""
+    tables = [table for path in csv_paths for table in search_medians.read_tables(path)]
+    search_medians.check_alike(tables)
+    first = tables[0]
+    goals = [robustness.parse_goal(t, first.metrics, first.version) for t in goal_texts]
+    ranked = goal_ranking.rank_by_goals(tables, goals)
+    console.print(display.goal_ranking_table(ranked, goals))
+    if ranking_path is not None:
+        goal_ranking.write_goal_ranking(ranking_path, ranked)
+        console.print(f"wrote {ranking_path}")

@@ -429,22 +429,63 @@ def search_medians_table(tables: Sequence, summary: Medians) -> Table:
                   title_justify="left")  # fmt: skip
     for name in ("search", "candidate", "engine"):
         table.add_column(name)
-    for metric in first.metrics:
+    _add_figure_columns(table, first.metrics)
+    for search in tables:
+        for engine, figures in search.figures.items():
+            table.add_row(search.source, search.candidate, _engine_cell(search, engine),
+                          *_figure_cells(first.metrics, figures))  # fmt: skip
+    table.add_section()
+    for engine, figures in summary.figures.items():
+        table.add_row(f"median of {summary.count}", "", engine,
+                      *_figure_cells(first.metrics, figures))  # fmt: skip
+    return table
+
+
+def goal_ranking_table(ranked: Sequence, goals: Sequence) -> Table:
+    """`metaopt robustness-rank`: the candidates best first by their margin to the goals,
+    each with the (goal, engine) pairs it misses, and per engine its whole-table figures and
+    the goals it misses there."""
+    first = ranked[0].table
+    sources = {r.table.source for r in ranked}
+    table = Table(title=f"candidates ranked over perturbation table {first.version} by the "
+                  f"goals {', '.join(map(str, goals))}", title_justify="left")  # fmt: skip
+    columns = ["rank", *(["file"] if len(sources) > 1 else []), "candidate", "goals missed",
+               "goal margin", "engine"]  # fmt: skip
+    for name in columns:
+        table.add_column(name, justify="right" if name in ("rank", "goals missed",
+                                                            "goal margin") else "left")  # fmt: skip
+    _add_figure_columns(table, first.metrics)
+    table.add_column("misses")
+    for number, entry in enumerate(ranked, start=1):
+        if number > 1:
+            table.add_section()
+        candidate = entry.table
+        for row, (engine, figures) in enumerate(candidate.figures.items()):
+            head = [str(number), *([candidate.source] if len(sources) > 1 else []),
+                    candidate.candidate, str(entry.missed), f"{entry.margin:+.3f}"]  # fmt: skip
+            missed = missed_goals(figures, candidate.failed[engine], goals)
+            table.add_row(*(head if row == 0 else [""] * len(head)),
+                          _engine_cell(candidate, engine), *_figure_cells(first.metrics, figures),
+                          ", ".join(map(str, missed)))  # fmt: skip
+    return table
+
+
+def _add_figure_columns(table: Table, metrics: Sequence[str]) -> None:
+    for metric in metrics:
         table.add_column(metric if metric.startswith("fell") else f"{metric} (median)",
                          justify="right")  # fmt: skip
 
-    def shown(figures: dict[str, float]) -> list[str]:
-        return [f"{figures[m]:.1%}" if m.startswith("fell") else f"{figures[m]:.3f}"
-                for m in first.metrics]  # fmt: skip
 
-    for search in tables:
-        for engine, figures in search.figures.items():
-            failed = f" ({search.failed[engine]} failed)" if search.failed[engine] else ""
-            table.add_row(search.source, search.candidate, engine + failed, *shown(figures))
-    table.add_section()
-    for engine, figures in summary.figures.items():
-        table.add_row(f"median of {summary.count}", "", engine, *shown(figures))
-    return table
+def _figure_cells(metrics: Sequence[str], figures: dict[str, float]) -> list[str]:
+    """A table's whole-table figures as shown: a rate in %, a median to 3 decimals."""
+    return [f"{figures[m]:.1%}" if m.startswith("fell") else f"{figures[m]:.3f}"
+            for m in metrics]  # fmt: skip
+
+
+def _engine_cell(table: Any, engine: str) -> str:
+    """The engine's name, with its failed evaluations where there are any."""
+    failed = table.failed[engine]
+    return engine + (f" ({failed} failed)" if failed else "")
 
 
 def search_medians_verdict(tables: Sequence, summary: Medians, goals: Sequence) -> str:
