@@ -116,6 +116,7 @@ def minimize(
     budget: int = 1000,
     seed: int | None = None,
     target: float | None = None,
+    max_time: float | None = None,
     store: str | Path | None = None,
     start: Sequence[float] | Sequence[Sequence[float]] | None = None,
     start_spread: float = 0.05,
@@ -124,27 +125,28 @@ def minimize(
     """Minimize f(x) over the box ``bounds`` with ``budget`` evaluations of f.
 
     ``params`` are the optimizer's parameters (``metaopt list``). The run stops early once a
-    fitness at or below ``target`` is found. With ``start`` (a point inside the bounds, or a
-    sequence of points) the optimizer's random initial population is that point and points
-    drawn within ±``start_spread`` of each range around it (around each point in turn: a warm
-    start, metaopt.warm_start). f may raise or return NaN for a point it cannot evaluate: that
-    evaluation counts as failed and the run goes on (RunFailed, naming the first error, when
-    the first ten or all of them fail).
+    fitness at or below ``target`` is found, or once it has run ``max_time`` seconds. With
+    ``start`` (a point inside the bounds, or a sequence of points) the optimizer's random
+    initial population is that point and points drawn within ±``start_spread`` of each range
+    around it (around each point in turn: a warm start, metaopt.warm_start). f may raise or
+    return NaN for a point it cannot evaluate: that evaluation counts as failed and the run
+    goes on (RunFailed, naming the first error, when the first ten or all of them fail).
     With ``store`` the run is kept in that run store under the problem name
     ``python:<function name>``.
     """
-    settings = _settings(target, start, start_spread)
+    settings = _settings(target, max_time, start, start_spread)
     return _optimize(f, bounds, optimizer, Sense.MINIMIZE, budget, seed, settings, store, params)
 
 
 def _settings(
     target: float | None,
+    max_time: float | None,
     start: Sequence[float] | Sequence[Sequence[float]] | None,
     start_spread: float,
 ) -> RunSettings:
-    """minimize's and maximize's stopping target and warm start as run settings."""
+    """minimize's and maximize's stopping target, time limit and warm start as run settings."""
     points = None if start is None else np.atleast_2d(np.asarray(start, dtype=float)).tolist()
-    return RunSettings(target=target, start=points, start_spread=start_spread)
+    return RunSettings(target=target, max_time=max_time, start=points, start_spread=start_spread)
 
 
 def maximize(
@@ -155,13 +157,14 @@ def maximize(
     budget: int = 1000,
     seed: int | None = None,
     target: float | None = None,
+    max_time: float | None = None,
     store: str | Path | None = None,
     start: Sequence[float] | Sequence[Sequence[float]] | None = None,
     start_spread: float = 0.05,
     **params: Any,
 ) -> Result:
     """As minimize, for the largest f(x); ``target`` stops the run at or above it."""
-    settings = _settings(target, start, start_spread)
+    settings = _settings(target, max_time, start, start_spread)
     return _optimize(f, bounds, optimizer, Sense.MAXIMIZE, budget, seed, settings, store, params)
 
 

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import time
+
 import numpy as np
 import pytest
 
@@ -42,6 +44,18 @@ def test_the_target_stops_the_run_at_the_first_fitness_that_good():
     assert result.evaluations == len(result.history.fitness) < 50_000
     with pytest.raises(metaopt.ConfigError, match="target must be a finite fitness"):
         metaopt.minimize(sphere, [(0.0, 1.0)], target=float("nan"))
+
+
+def test_max_time_stops_the_run_with_what_it_has_done():
+    def slow(x: np.ndarray) -> float:
+        time.sleep(0.01)
+        return sphere(x)
+
+    result = metaopt.minimize(slow, [(-5.0, 5.0)] * 2, budget=100_000, seed=2, max_time=0.5)
+    assert 0 < result.evaluations == len(result.history.fitness) < 100  # 100 take a second
+    assert result.fitness == result.history.best[-1]
+    with pytest.raises(metaopt.ConfigError, match="max time must be positive"):
+        metaopt.minimize(sphere, [(0.0, 1.0)], max_time=0)
 
 
 def test_a_stored_run_is_in_the_store_for_runs_show_and_report(tmp_path):
