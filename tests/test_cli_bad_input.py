@@ -56,6 +56,17 @@ def _int_outside(low: int | None, high: int | None) -> st.SearchStrategy[str]:
     return st.one_of(parts)
 
 
+def _bad_seconds(option: str, most: float, named: str):
+    """A case: `run` with option at no more than 0 s, above ``most`` s, NaN or no number."""
+    values = st.one_of(
+        st.floats(max_value=0).map(repr),
+        st.floats(min_value=most, exclude_min=True).map(repr),
+        st.just("nan"),
+        _text().filter(lambda t: not _is_float(t)),
+    )
+    return _option(RUN_BASE, option, values, also=(named,))
+
+
 def _not_in(choices: list[str]) -> st.SearchStrategy[str]:
     return _text().filter(lambda t: t not in choices and not t.startswith("-"))
 
@@ -147,28 +158,8 @@ _CASES = {
     ),
     "run --mode": _option(RUN_BASE, "--mode", _not_in(["sync", "async"])),
     "run --aggregate": _option(RUN_BASE, "--aggregate", _not_in(["mean", "median"])),
-    "run --time-limit": _option(
-        RUN_BASE,
-        "--time-limit",
-        st.one_of(
-            st.floats(max_value=0).map(repr),
-            st.floats(min_value=1e6, exclude_min=True).map(repr),
-            st.just("nan"),
-            _text().filter(lambda t: not _is_float(t)),
-        ),
-        also=("time limit",),
-    ),
-    "run --max-time": _option(
-        RUN_BASE,
-        "--max-time",
-        st.one_of(
-            st.floats(max_value=0).map(repr),
-            st.floats(min_value=1e9, exclude_min=True).map(repr),
-            st.just("nan"),
-            _text().filter(lambda t: not _is_float(t)),
-        ),
-        also=("max time",),
-    ),
+    "run --time-limit": _bad_seconds("--time-limit", 1e6, "time limit"),
+    "run --max-time": _bad_seconds("--max-time", 1e9, "max time"),
     "run --set": _set(RUN_BASE),
     "run --start-from": _option(
         RUN_BASE, "--start-from", st.one_of(_RUN_ID, st.sampled_from(["hs_walk", "stride_mujoco"]))

@@ -204,11 +204,24 @@ def _maximizes(info: ProblemInfo, candidate: Candidate) -> bool:
         problem.close()
 
 
-@click.command("robustness-summary")
-@click.argument(
+#: the robustness tables (robustness --csv) that robustness-summary and robustness-rank read
+_csv_tables = click.argument(
     "csv_paths", metavar="CSV...", nargs=-1, required=True,
     type=click.Path(dir_okay=False, path_type=Path),
 )  # fmt: skip
+
+
+def _checked_goals(
+    tables: list[search_medians.SearchTable], goal_texts: tuple[str, ...]
+) -> list[robustness.Goal]:
+    """The goals, parsed against the tables' metrics, once the tables are checked alike."""
+    search_medians.check_alike(tables)
+    first = tables[0]
+    return [robustness.parse_goal(t, first.metrics, first.version) for t in goal_texts]
+
+
+@click.command("robustness-summary")
+@_csv_tables
 @click.option(
     "--goal",
     "goal_texts",
@@ -231,9 +244,7 @@ def robustness_summary_command(
     per engine and their median over the searches, against the goals. A search is one
     chaotic trajectory: a design is judged by medians over its seeds."""
     tables = [search_medians.read_table(path) for path in csv_paths]
-    search_medians.check_alike(tables)
-    first = tables[0]
-    goals = [robustness.parse_goal(t, first.metrics, first.version) for t in goal_texts]
+    goals = _checked_goals(tables, goal_texts)
     summary = search_medians.medians(tables)
     console.print(display.search_medians_table(tables, summary))
     if goals:
@@ -244,10 +255,7 @@ def robustness_summary_command(
 
 
 @click.command("robustness-rank")
-@click.argument(
-    "csv_paths", metavar="CSV...", nargs=-1, required=True,
-    type=click.Path(dir_okay=False, path_type=Path),
-)  # fmt: skip
+@_csv_tables
 @click.option(
     "--goal",
     "goal_texts",
@@ -272,9 +280,7 @@ def robustness_rank_command(
     engine, as robustness --goal ranks, without evaluating anything. Equal margins keep the
     files' order."""
     tables = [table for path in csv_paths for table in search_medians.read_tables(path)]
-    search_medians.check_alike(tables)
-    first = tables[0]
-    goals = [robustness.parse_goal(t, first.metrics, first.version) for t in goal_texts]
+    goals = _checked_goals(tables, goal_texts)
     ranked = goal_ranking.rank_by_goals(tables, goals)
     console.print(display.goal_ranking_table(ranked, goals))
     if ranking_path is not None:
