@@ -66,6 +66,19 @@ def test_other_goals_rank_by_their_own_margins(race: Path) -> None:
     assert expected[0] in done.stdout and "misses" in done.stdout
 
 
+def test_several_files_rank_together_each_candidate_named_with_its_file(race: Path) -> None:
+    """Two races' tables pooled: every candidate of both, ranked as one, the file beside it."""
+    (race / "copy.csv").write_bytes((race / "race.csv").read_bytes())
+    done = metaopt_cli("robustness-rank", "race.csv", "copy.csv", *GOALS, "--ranking",
+                       "pooled.csv", cwd=race)  # fmt: skip
+    assert done.returncode == 0, done.stderr
+    pooled = _rows(race / "pooled.csv")
+    own = [r["candidate"] for r in _rows(race / "ranking.csv")]
+    assert [r["candidate"] for r in pooled] == [label for label in own for _ in (1, 2)]
+    assert [r["source"] for r in pooled[:2]] == ["race.csv", "copy.csv"]  # ties: file order
+    assert "file" in done.stdout
+
+
 def test_bad_input_is_refused_in_one_line(race: Path, tmp_path: Path) -> None:
     (tmp_path / "not.csv").write_text("a,b\n1,2\n")
     one_error_line(metaopt_cli("robustness-rank", "not.csv", *GOALS, cwd=tmp_path),
