@@ -8,6 +8,7 @@ every file in the working folder as they were."""
 from __future__ import annotations
 
 import hashlib
+import re
 import sqlite3
 import string
 from pathlib import Path
@@ -81,6 +82,9 @@ _RUN_ID = st.one_of(
 )
 RUN_BASE = ["run", "-o", "hs", "-p", "sphere", "--budget", "5", "--set", "dim=2"]
 COMPARE_BASE = ["compare", "-o", "hs", "-p", "sphere", "--seeds", "1", "--budget", "5"]
+#: the names `metaopt new` accepts (its refusal says so): lowercase words joined by - or _,
+#: starting with a letter; "utf-8" is one, though no Python identifier
+PLUGIN_NAME = re.compile(r"[a-z][a-z0-9]*(?:[-_][a-z0-9]+)*\Z")
 COMMANDS = ["list", "run", "resume", "runs", "show", "export", "replay", "report", "compare",
             "robustness", "robustness-summary", "robustness-rank", "new"]  # fmt: skip
 #: Every installed name, so that a generated "unknown" name never names a real plugin.
@@ -296,7 +300,7 @@ _CASES = {
         ["new", "optimizer"],
         st.one_of(
             st.sampled_from(["", "1abc", "a b", "hs", "a/b", "-"]),
-            _text(1).filter(lambda t: not t.isidentifier() and not t.startswith("-")),
+            _text(1).filter(lambda t: not PLUGIN_NAME.match(t) and not t.startswith("-")),
         ),
     ),
     "new --directory": _option(
