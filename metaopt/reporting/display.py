@@ -23,7 +23,7 @@ from rich.progress import (
 from rich.table import Table
 
 from metaopt.assessment.replay import Replay, ReplaySource, SeedReplay
-from metaopt.assessment.search_medians import Medians, missed_goals
+from metaopt.assessment.search_medians import Medians, SearchTable, missed_goals
 from metaopt.params import Param
 from metaopt.reporting.recent import RecentFigures
 from metaopt.run_loop import RunResult
@@ -482,7 +482,7 @@ def _figure_cells(metrics: Sequence[str], figures: dict[str, float]) -> list[str
             for m in metrics]  # fmt: skip
 
 
-def _engine_cell(table: Any, engine: str) -> str:
+def _engine_cell(table: SearchTable, engine: str) -> str:
     """The engine's name, with its failed evaluations where there are any."""
     failed = table.failed[engine]
     return engine + (f" ({failed} failed)" if failed else "")
