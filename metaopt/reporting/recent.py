@@ -9,6 +9,8 @@ import statistics
 from collections.abc import Iterable
 from dataclasses import dataclass
 
+import numpy as np
+
 from metaopt.storage.run_store import EvaluationRecord
 
 #: evaluations in the window of `metaopt show` unless --recent says otherwise
@@ -46,7 +48,10 @@ def recent_figures(evaluations: Iterable[EvaluationRecord]) -> RecentFigures | N
     if not window:
         return None
     fitnesses = [e.fitness for e in window if e.fitness is not None]
-    quartiles = _quartiles(fitnesses) if fitnesses else None
+    quartiles = None
+    if fitnesses:  # linear interpolation, as every other table of metaopt's
+        lower, median, upper = np.percentile(fitnesses, [25, 50, 75])
+        quartiles = (float(lower), float(median), float(upper))
     values: dict[str, list[float]] = {}
     for evaluation in window:
         for name, value in evaluation.metrics.items():
@@ -61,11 +66,3 @@ def _metric(name: str, values: list[float]) -> MetricFigure:
     if all(value in (0.0, 1.0) for value in values):
         return MetricFigure(name, sum(values) / len(values), True, len(values))
     return MetricFigure(name, statistics.median(values), False, len(values))
-
-
-def _quartiles(values: list[float]) -> tuple[float, float, float]:
-    """Lower quartile, median, upper quartile (inclusive method: one value is its own)."""
-    if len(values) == 1:
-        return values[0], values[0], values[0]
-    lower, middle, upper = statistics.quantiles(values, n=4, method="inclusive")
-    return lower, middle, upper
