@@ -44,6 +44,8 @@ def refusal(tmp_path: Path, path: str, knob: str, value: str) -> str:
         ("BASIN_FELL", "5%", "a fall rate from 0 to 1"),
         ("RACE_FELL", "0,05", "a fall rate from 0 to 1"),
         ("DEADLINE", "30m", "a whole number, 1 or more"),
+        ("FLAT_BEST", "1m", "a fitness in metres, 0 or more"),
+        ("FLAT_BEST", "-1", "a fitness in metres, 0 or more"),
     ],
 )
 def test_a_bad_knob_stops_the_search_with_one_line(tmp_path, knob, value, accepted):
@@ -56,6 +58,12 @@ def test_a_deadline_needs_every_stage_1_first(tmp_path):
     """Stage 1b's share of the time left is known only once every stage 1 has run."""
     line = refusal(tmp_path, "/usr/bin:/bin", "DEADLINE", "1800")
     assert "DEADLINE needs STAGE1B_START=pool" in line and "raced" in line
+
+
+def test_a_flat_basin_is_replaced_only_from_the_pool(tmp_path):
+    """Only the pooled basin race ranks more basins than there are pipelines."""
+    line = refusal(tmp_path, "/usr/bin:/bin", "FLAT_BEST", "1")
+    assert "FLAT_BEST needs STAGE1B_START=pool" in line and "raced" in line
 
 
 @pytest.mark.parametrize(
