@@ -94,7 +94,7 @@
 # run of each pipeline. A flat basin (seeds 31 and 32 of the deadline searches: every candidate
 # fell, best below 0 m, against 2.4-5.7 m for the rest) otherwise costs a third of the tickets.
 # The flat-basin searches (docs/robustness/searches.md) ran FLAT_BEST=1 with the deadline
-# searches' knobs on fresh seeds 33-35.
+# searches' knobs on fresh seeds 33-35, and with STAGE1_SET=duration=9 on seed 36 (a pilot).
 # This is the thirteenth search, run after commit d228dc7 (nao-walk charges the flight
 # penalty past engine_cap). STAGE1B_START=all gives the twelfth's stage 1b, from all four
 # stage-1 bests; the twelfth (commit f1b7010) and the thirteenth's pilot ran before d228dc7.
