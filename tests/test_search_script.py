@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import json
+import re
 import shutil
 import subprocess
 from pathlib import Path
@@ -60,10 +62,34 @@ def test_a_deadline_needs_every_stage_1_first(tmp_path):
     assert "DEADLINE needs STAGE1B_START=pool" in line and "raced" in line
 
 
-def test_a_flat_basin_is_replaced_only_from_the_pool(tmp_path):
+def test_flat_best_needs_the_pooled_basins(tmp_path):
     """Only the pooled basin race ranks more basins than there are pipelines."""
     line = refusal(tmp_path, "/usr/bin:/bin", "FLAT_BEST", "1")
     assert "FLAT_BEST needs STAGE1B_START=pool" in line and "raced" in line
+
+
+def test_the_flat_check_reads_the_runs_best_from_the_store(tmp_path):
+    """The script's own flat(): yes when the run's best (from `metaopt show`) scores below
+    FLAT_BEST, no otherwise; a store it cannot read stops the search (exit not 0)."""
+    metaopt = shutil.which("metaopt")
+    if metaopt is None:
+        pytest.skip("the metaopt command is not installed")
+    db = tmp_path / "s.db"
+    run = ["run", "-o", "random", "-p", "sphere", "--budget", "5", "--seed", "1", "--db", str(db)]
+    subprocess.run([metaopt, *run], check=True, capture_output=True, timeout=120)
+    shown = subprocess.run([metaopt, "show", "1", "--db", str(db), "--format", "json"],
+                           check=True, capture_output=True, text=True, timeout=60)  # fmt: skip
+    best = json.loads(shown.stdout)["best"]["fitness"]
+    function = re.search(r"^flat\(\) \{.*?^\}$", SCRIPT.read_text(), re.S | re.M).group(0)
+
+    def verdict(flat_best: float, store: Path) -> subprocess.CompletedProcess:
+        script = f"set -euo pipefail\n{function}\ndb={store}\nFLAT_BEST={flat_best}\n"
+        script += 'verdict=$(flat 1)\necho "$verdict"\n'
+        return subprocess.run(["bash", "-c", script], capture_output=True, text=True, timeout=60)
+
+    assert verdict(best * 2, db).stdout == "yes\n"
+    assert verdict(best / 2, db).stdout == "no\n"
+    assert verdict(best * 2, tmp_path / "missing.db").returncode != 0
 
 
 @pytest.mark.parametrize(

@@ -199,11 +199,10 @@ stage1b() {  # pipeline $1's stage 1b, run seed $2, from the basin(s) in starts
         --workers 2 --batch "$stage1b_batch" --db "$db"
     run=$((run + 1))
 }
-flat() {  # whether run $1's best scored below FLAT_BEST (never without FLAT_BEST)
-    [ -n "${FLAT_BEST:-}" ] || return 1
+flat() {  # yes when run $1's best scored below FLAT_BEST (or none scored), no otherwise
     metaopt show "$1" --db "$db" --format json | python3 -c 'import json, sys
 best = json.load(sys.stdin)["best"]
-sys.exit(0 if best is None or best["fitness"] < float(sys.argv[1]) else 1)' "$FLAT_BEST"
+print("yes" if best is None or best["fitness"] < float(sys.argv[1]) else "no")' "$FLAT_BEST"
 }
 spare=$pipelines  # the pool's basins handed out so far
 pool_size=0
@@ -235,7 +234,9 @@ for p in $(seq 1 "$pipelines"); do
     run_seed=$((10 * seed + p))
     while :; do
         stage1b "$p" "$run_seed"
-        if ! flat "$run"; then break; fi
+        [ -n "${FLAT_BEST:-}" ] || break
+        verdict=$(flat "$run")  # on its own line: a store that cannot be read stops the search
+        [ "$verdict" = yes ] || break
         spare=$((spare + 1))
         if [ "$spare" -gt "$pool_size" ] || [ "$(time_share "$p")" -lt "$least_retry" ]; then
             break
