@@ -95,6 +95,9 @@
 # fell, best below 0 m, against 2.4-5.7 m for the rest) otherwise costs a third of the tickets.
 # The flat-basin searches (docs/robustness/searches.md) ran FLAT_BEST=1 with the deadline
 # searches' knobs on fresh seeds 33-35, and with STAGE1_SET=duration=9 on seed 36 (a pilot).
+# The two-pipeline searches ran PIPELINES=2 STAGE1_RUNS=5 with the flat-basin searches' knobs on
+# fresh seeds 37-39 (design A: ten stage-1 runs, each stage 1b about 300 s), and with
+# RACE_FELL=0.05 besides on fresh seeds 40-41 (design B, whose seed 39 is A's own).
 # This is the thirteenth search, run after commit d228dc7 (nao-walk charges the flight
 # penalty past engine_cap). STAGE1B_START=all gives the twelfth's stage 1b, from all four
 # stage-1 bests; the twelfth (commit f1b7010) and the thirteenth's pilot ran before d228dc7.
