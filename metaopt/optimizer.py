@@ -61,6 +61,13 @@ class Optimizer(ABC):
     def load_state_dict(self, state: dict[str, Any]) -> None:
         """Restore what state_dict returned."""
 
+    def recommendation(self) -> np.ndarray | None:
+        """The point the optimizer would answer with now other than its best evaluated one
+        (CMA-ES: its distribution's mean, pycma's ``xfavorite``), inside the space; None where
+        the best evaluated is its answer. On a noisy problem the best evaluated is the luckiest
+        of many draws, a distribution's centre an average over them."""
+        return None
+
 
 def rng_state(rng: np.random.Generator) -> dict[str, Any]:
     """A numpy Generator's state as plain JSON (big ints are fine in JSON)."""

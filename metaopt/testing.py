@@ -123,6 +123,7 @@ def optimizer_checks(
         "ask_tell_shapes": harness.check_ask_tell_shapes,
         "tell_inf": harness.check_tell_inf,
         "state_round_trip": harness.check_state_round_trip,
+        "recommendation": harness.check_recommendation,
         "deterministic": harness.check_deterministic,
         "minimizes": harness.check_minimizes,
     }
@@ -476,6 +477,31 @@ class _OptimizerHarness:
                 "(super().__init__(space, seed) makes self.rng from it)"
             )
 
+    def check_recommendation(self) -> None:
+        """``recommendation()`` is None or one point inside the space, and an optimizer rebuilt
+        from the JSON state recommends the same (``RUN:recommended`` rebuilds it so)."""
+        space = SPACES[MAIN_SPACE]
+        optimizer = self.build(space, 0)
+        stop = 3
+        self.drive(optimizer, self.sizes(optimizer, stop), 0, "run")
+        point = _recommended(optimizer, f"after {stop} asks")
+        if point is not None and (point.shape != (space.dim,) or not space.contains(point)):
+            raise ConformanceError(
+                f"recommendation() after {stop} asks returned shape {point.shape} at "
+                f"{point.tolist()}, outside the space or not one point of {space.dim} "
+                "variables; return one point inside the bounds (space.repair) or None"
+            )
+        resumed = self.build(space, 0)
+        resumed.load_state_dict(json.loads(_state_json(optimizer, stop)))
+        again = _recommended(resumed, "after load_state_dict")
+        if (point is None) != (again is None) or (point is not None and not _same(point, again)):
+            raise ConformanceError(
+                f"an optimizer rebuilt from the JSON state taken after {stop} asks recommends "
+                f"{None if again is None else again.tolist()}, the original "
+                f"{None if point is None else point.tolist()}; compute the recommendation "
+                "from what state_dict holds"
+            )
+
     def check_minimizes(self) -> None:
         """On a 5-D bowl, late candidates beat early ones: it learns, and lower is better."""
         space = Space.from_bounds([-3.0] * 5, [7.0] * 5)
@@ -498,6 +524,17 @@ class _OptimizerHarness:
                     f"the first {EARLY} ({early:.4g}); the optimizer must minimize (lower "
                     "fitness is better) and learn from what tell gives it"
                 )
+
+
+def _recommended(optimizer: Optimizer, where: str) -> np.ndarray | None:
+    """What ``optimizer.recommendation()`` returns, as a float array (or None)."""
+    try:
+        point = optimizer.recommendation()
+    except Exception as error:
+        raise ConformanceError(
+            f"recommendation() raised {type(error).__name__}: {error} ({where})"
+        ) from None
+    return None if point is None else np.asarray(point, dtype=float)
 
 
 def _state_json(optimizer: Optimizer, stop: int) -> str:

@@ -143,6 +143,12 @@ class CMAES(Optimizer):
                 self._update(np.array(self._told_x), np.array(self._told_f))
                 self._told_x, self._told_f = [], []
 
+    def recommendation(self) -> np.ndarray | None:
+        """The distribution's mean, clipped into the bounds; None before the first update."""
+        if self.mean is None:
+            return None
+        return self.space.repair(self.space.lower + self.mean * self.space.width, "clip")
+
     # -- the update ---------------------------------------------------------------------
 
     def _update(self, unit_points: np.ndarray, fitnesses: np.ndarray) -> None:

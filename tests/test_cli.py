@@ -96,7 +96,10 @@ def test_replay_reproduces_the_stored_best_and_rejects_foreign_settings(tmp_path
     fitness_row = next(line for line in other.stdout.splitlines() if "fitness" in line)
     assert fitness_row.count(f"{worse['fitness']:.6g}") == 2
     for target, message in (
-        ("1:x", "neither a stored candidate (none) nor a run (RUN or RUN:CANDIDATE)"),
+        (
+            "1:x",
+            "neither a stored candidate (none) nor a run (RUN, RUN:CANDIDATE or RUN:recommended)",
+        ),
         ("1:9999", "no candidate 9999"),
     ):
         refused = metaopt_cli("replay", target, cwd=tmp_path, env=BASIC)

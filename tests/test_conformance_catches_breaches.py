@@ -18,6 +18,7 @@ OPTIMIZER_BREACHES = [
     (broken.IGNORES_N, "ask_tell_shapes", ["ask(1) returned shape (4, 1), expected (1, 1)"]),
     (broken.FORGETS_RNG, "state_round_trip", ["differs from the uninterrupted run", "rng_state"]),
     (broken.NUMPY_STATE, "state_round_trip", ["state['center'] is numpy.ndarray", ".tolist()"]),
+    (broken.RECOMMENDS_OUTSIDE, "recommendation", ["outside the space", "space.repair"]),
     (broken.GLOBAL_RANDOM, "deterministic", ["seed 7", "never from np.random"]),
     (broken.CRASHES_ON_INF, "tell_inf", ["OverflowError", "+inf", "worse than any finite"]),
     (broken.MAXIMIZER, "minimizes", ["no better than the median", "must minimize"]),
@@ -62,7 +63,7 @@ def test_a_problem_breach_is_caught_by_its_check(info, check, phrases):
 
 
 def test_check_optimizer_lists_every_breached_check():
-    with pytest.raises(ConformanceError, match=r"'GlobalRandom' breaks 2 of 8 checks") as caught:
+    with pytest.raises(ConformanceError, match=r"'GlobalRandom' breaks 2 of 9 checks") as caught:
         check_optimizer(broken.GLOBAL_RANDOM)
     assert "- deterministic:" in str(caught.value)
     assert "- state_round_trip:" in str(caught.value)

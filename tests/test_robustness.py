@@ -434,7 +434,9 @@ def test_find_candidates_takes_a_runs_top_or_one_candidate_by_number(short_run: 
     assert one.label == f"run 1 candidate {numbers[2]}" and np.array_equal(one.x, best[2].x)
     assert find_candidate("1", registry().problems, db)[0].label == "run 1"
     for bad in ("1:x", "x:1"):
-        with pytest.raises(ConfigError, match=r"nor a run \(RUN or RUN:CANDIDATE\)"):
+        with pytest.raises(
+            ConfigError, match=r"nor a run \(RUN, RUN:CANDIDATE or RUN:recommended\)"
+        ):
             find_candidates(bad, registry().problems, db, 1)
 
 

@@ -2,8 +2,9 @@
 best (or its best few) or one candidate of a run, for the commands that test one (robustness) or
 start from one (run --start-from).
 
-Targets: ``NAME`` (a stored candidate), ``RUN`` (the run's best) and ``RUN:NUMBER`` (candidate
-NUMBER of the run, as ``metaopt robustness RUN --top K`` labels them)."""
+Targets: ``NAME`` (a stored candidate), ``RUN`` (the run's best), ``RUN:NUMBER`` (candidate
+NUMBER of the run, as ``metaopt robustness RUN --top K`` labels them) and ``RUN:recommended``
+(what the run's optimizer recommends beside its best: metaopt.assessment.recommendation)."""
 
 from __future__ import annotations
 
@@ -14,6 +15,7 @@ from typing import Any
 
 import numpy as np
 
+from metaopt.assessment.recommendation import RECOMMENDED, recommended_point
 from metaopt.errors import ConfigError, StoreError
 from metaopt.params import resolve
 from metaopt.problem import ProblemInfo
@@ -35,8 +37,8 @@ def find_candidate(
     target: str, problems: Mapping[str, ProblemInfo], db_path: str
 ) -> tuple[Candidate, ProblemInfo]:
     """``target`` as one candidate: a problem's stored candidate by name, else a run id in the
-    store at db_path, whose best candidate is taken (by its aggregate when it resampled), or
-    ``RUN:NUMBER``, that run's candidate NUMBER."""
+    store at db_path, whose best candidate is taken (by its aggregate when it resampled),
+    ``RUN:NUMBER``, that run's candidate NUMBER, or ``RUN:recommended``."""
     candidates, info = find_candidates(target, problems, db_path, 1)
     return candidates[0], info
 
@@ -44,9 +46,10 @@ def find_candidate(
 def find_candidates(
     target: str, problems: Mapping[str, ProblemInfo], db_path: str, top: int
 ) -> tuple[list[Candidate], ProblemInfo]:
-    """``target``'s candidates: a stored candidate or ``RUN:NUMBER`` alone; for a run id, its
-    ``top`` best candidates with distinct decision vectors, best first (labelled ``run R``
-    when top is 1, else ``run R candidate N``, N being what ``RUN:N`` names)."""
+    """``target``'s candidates: a stored candidate, ``RUN:NUMBER`` or ``RUN:recommended``
+    alone; for a run id, its ``top`` best candidates with distinct decision vectors, best
+    first (labelled ``run R`` when top is 1, else ``run R candidate N``, N being what
+    ``RUN:N`` names)."""
     named = stored_candidate_named(target, problems)
     if named is not None:
         candidate, info, _ = named
@@ -57,13 +60,19 @@ def find_candidates(
     run_id, _, number = target.partition(":")
     with RunStore(db_path) as store:
         run = store.run(run_id)
-        records = [store.candidate(run, int(number))] if number else store.best_candidates(run, top)
-        if not records:
-            raise StoreError(f"run {run.id} has no successful evaluation")
+        if number != RECOMMENDED:
+            records = (
+                [store.candidate(run, int(number))] if number else store.best_candidates(run, top)
+            )
+            if not records:
+                raise StoreError(f"run {run.id} has no successful evaluation")
     info = problems.get(run.problem)
     if info is None:
         raise ConfigError(f"run {run.id}'s problem {run.problem!r} is not installed")
     params = resolve(info.params, run.problem_params, info.name)
+    if number == RECOMMENDED:
+        point = recommended_point(run)
+        return [Candidate(f"run {run.id} recommended", info.name, params, point, target)], info
     best_alone = top == 1 and not number
     return [
         Candidate(
@@ -90,15 +99,16 @@ def stored_candidate_named(
 
 
 def check_run_target(target: str, problems: Mapping[str, ProblemInfo], db_path: str) -> None:
-    """ConfigError, naming what is accepted, unless ``target`` reads ``RUN`` or ``RUN:NUMBER``
-    and a store exists at db_path (for a target that is no stored candidate's name)."""
+    """ConfigError, naming what is accepted, unless ``target`` reads ``RUN``, ``RUN:NUMBER`` or
+    ``RUN:recommended`` and a store exists at db_path (for a target that is no stored
+    candidate's name)."""
     run_id, _, number = target.partition(":")
-    if not run_id.isdigit() or (number and not number.isdigit()):
+    if not run_id.isdigit() or (number and not number.isdigit() and number != RECOMMENDED):
         names = sorted(n for i in problems.values() if i.stored_candidates
                        for n in i.stored_candidates())  # fmt: skip
         raise ConfigError(
             f"{target!r} is neither a stored candidate ({', '.join(names) or 'none'}) nor "
-            "a run (RUN or RUN:CANDIDATE)"
+            "a run (RUN, RUN:CANDIDATE or RUN:recommended)"
         )
     if not Path(db_path).exists():
         raise ConfigError(

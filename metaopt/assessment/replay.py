@@ -1,6 +1,7 @@
 """Re-evaluating a candidate on the same problem settings or changed ones: a stored run's best
-(``RUN``), another of its candidates (``RUN:NUMBER``), or a candidate a problem plugin keeps as
-data (``NAME``, e.g. a nao-walk gait)."""
+(``RUN``), another of its candidates (``RUN:NUMBER``), its optimizer's recommendation
+(``RUN:recommended``), or a candidate a problem plugin keeps as data (``NAME``, e.g. a nao-walk
+gait)."""
 
 from __future__ import annotations
 
@@ -10,6 +11,7 @@ from typing import Any
 import numpy as np
 
 from metaopt.assessment.candidates import check_run_target, stored_candidate_named
+from metaopt.assessment.recommendation import RECOMMENDED, recommended_point
 from metaopt.errors import ConfigError, StoreError
 from metaopt.executors.base import (
     EvaluationTask,
@@ -75,7 +77,18 @@ def stored_candidate(store: RunStore, target: int | str) -> tuple[RunRecord, Can
 
 
 def run_source(store: RunStore, target: int | str) -> ReplaySource:
-    """``target``'s candidate in the store (as stored_candidate finds it), to replay."""
+    """``target``'s candidate in the store (as stored_candidate finds it), to replay; for
+    ``RUN:recommended``, the run's recommendation with the seeds of the run's best, so the two
+    are compared in the same worlds."""
+    run_id, _, number = str(target).partition(":")
+    if number == RECOMMENDED:
+        run, best = stored_candidate(store, run_id)
+        return ReplaySource(
+            f"run {run.id}, recommended by {run.optimizer} (not evaluated by the run; with "
+            f"the seeds of its best, candidate {best.number})",
+            run.problem, run.problem_params, recommended_point(run),
+            [(e.index, e.seed) for e in best.samples], best.aggregate,
+        )  # fmt: skip
     run, best = stored_candidate(store, target)
     return ReplaySource(
         f"run {run.id}, {best.describe()}",

@@ -220,9 +220,10 @@ def list_plugins(name: str | None) -> None:
     "--start-from",
     "start_from",
     multiple=True,
-    metavar="RUN|RUN:CANDIDATE|NAME",
+    metavar="RUN|RUN:CANDIDATE|RUN:recommended|NAME",
     help="Warm start: the first candidates are this run's best (in --db), one of its "
-    "candidates (RUN:CANDIDATE), or a stored candidate, and points around it, instead of the "
+    "candidates (RUN:CANDIDATE), what its optimizer recommends (RUN:recommended: CMA-ES's "
+    "mean), or a stored candidate, and points around it, instead of the "
     "optimizer's random ones. Repeat it to start from several, with points around each in "
     "turn (the optimizer then chooses among them).",
 )
@@ -418,7 +419,7 @@ def export_command(run_id: str, fmt: str, output: Path | None, db_path: str) -> 
 
 
 @main.command("replay")
-@click.argument("target", metavar="RUN[:CANDIDATE]|NAME")
+@click.argument("target", metavar="RUN[:CANDIDATE|:recommended]|NAME")
 @click.option("--backend", default=None, help="Physics engine to replay on [the run's own].")
 @click.option("--set", "settings", multiple=True, metavar="NAME=VALUE",
               help="Change a problem parameter for the replay.")  # fmt: skip
@@ -435,7 +436,8 @@ def replay_command(
     scheduler: str | None, db_path: str,
 ) -> None:  # fmt: skip
     """Re-run a stored run's best candidate (RUN), another one (RUN:CANDIDATE, as `metaopt
-    robustness --top` names them) or a problem's stored candidate (NAME, e.g. a nao-walk gait),
+    robustness --top` names them), what its optimizer recommends (RUN:recommended, with the
+    best's seeds) or a problem's stored candidate (NAME, e.g. a nao-walk gait),
     and compare with what was stored (with --seeds: a statistic over fresh seeds, for noisy
     problems)."""
     plugins = registry()

@@ -30,7 +30,9 @@ from metaopt.settings import parse_problem_settings
 
 
 @click.command("robustness")
-@click.argument("targets", metavar="RUN|RUN:CANDIDATE|NAME...", nargs=-1, required=True)
+@click.argument(
+    "targets", metavar="RUN|RUN:CANDIDATE|RUN:recommended|NAME...", nargs=-1, required=True
+)
 @click.option(
     "--top",
     type=click.IntRange(min=1, max=1000),
@@ -73,9 +75,9 @@ from metaopt.settings import parse_problem_settings
 @output_file_option(
     "--ranking",
     "ranking_path",
-    "Write the ranking as CSV here: rank, target (RUN:CANDIDATE or NAME, to name it to "
-    "another command), candidate, goals missed, goal margin, whether it meets the goals, "
-    "score.",
+    "Write the ranking as CSV here: rank, target (RUN:CANDIDATE, RUN:recommended or NAME, "
+    "to name it to another command), candidate, goals missed, goal margin, whether it meets "
+    "the goals, score.",
     suffix=".csv",
 )
 @output_file_option(
@@ -102,7 +104,8 @@ def robustness_command(
 ) -> None:  # fmt: skip
     """Evaluate candidates over their problem's standard perturbation table, on every engine,
     over N seeds per cell: a run's best (or its --top K best), one of its candidates
-    (RUN:CANDIDATE) or a stored one (e.g. a nao-walk gait). Several are ranked by their worst
+    (RUN:CANDIDATE), what its optimizer recommends (RUN:recommended: CMA-ES's mean) or a
+    stored one (e.g. a nao-walk gait). Several are ranked by their worst
     engine's mean fitness over the table (with --goal: by their margin to the goals first);
     the best is shown cell by cell, and with --goal which goals it meets."""
     plugins = registry()
