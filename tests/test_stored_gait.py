@@ -4,7 +4,7 @@ Each record was made by scripts/store_gait.py from a run's best candidate (by it
 the run resampled; the command that found it is in the record). A claim is a statistic, not one
 trajectory: on every engine its record *claims* (for hs_walk: MuJoCo; for the extended and stride
 controllers' gaits: docs/faster-walk.md; for robust_walk, steered_walk, transfer_walk, capped_walk,
-pooled_walk, goal_walk, cmaes_walk, deadline_walk and one_pipeline_walk all three:
+pooled_walk, goal_walk, cmaes_walk, deadline_walk, one_pipeline_walk and steady_walk all three:
 docs/robustness.md), over the claim's seeds at its noise, the median distance must be at least
 the claimed one (a little below what was measured), the median |drift| at most the claimed
 one, the fall rate (and, where claimed, the median flight share) at most the claimed one (since
@@ -160,18 +160,24 @@ def test_the_transfer_walk_claims_the_same_pace_on_every_engine_without_a_fall()
         assert claim["min_median_distance"] >= DISTANCE_MARGIN * 0.3 * 12  # 0.33-0.36 m/s
 
 
-#: The part-4 searches' gaits (docs/robustness.md), each searched on all three engines with
-#: each engine's progress capped at 6 m before the mean: what its record claims at noise 0.1 on
-#: every engine: no fall, flight within the goal's 5 %, |drift| within a bound where claimed,
-#: and a median distance at a pace (less the claims' margin). capped_walk (the ninth search)
-#: walks slower on ODE (0.40 m/s over the standard table); pooled_walk (the eleventh) falls 7 %
-#: of the time on PyBullet over the whole table, which is not claimed here; goal_walk (the
-#: twelfth, within the goal over the table) is slowest on ODE in the nominal world (0.43 m/s;
-#: 0.444 over the whole table); cmaes_walk (CMA-ES's stage 1b, within the goal over the table,
-#: scored with a push in every evaluation) walks 0.44 m/s on every engine here too, and so does
-#: deadline_walk (the search fitted to 30 minutes by a deadline, seed 30), with |drift| within
-#: 0.1 m on every engine; one_pipeline_walk (the search with one pipeline, seed 42, within the
-#: goal over the table) walks 0.5 m/s on every engine here.
+#: A claim's flight bound is its measured median plus 0.01, rounded up to the percent
+#: (scripts/store_gait.py): a median within the goal's 5 % claims at most 0.06 (steady_walk's
+#: MuJoCo median is 0.044 over the claim's seeds).
+GOAL_FLIGHT_CLAIM = 0.06
+
+#: The part-4 searches' gaits (docs/robustness.md), each searched on all three engines with each
+#: engine's progress capped at 6 m before the mean: what its record claims at noise 0.1 on every
+#: engine: no fall, flight within the goal's 5 % (GOAL_FLIGHT_CLAIM), |drift| within a bound where
+#: claimed, and a median distance at a pace (less the claims' margin). capped_walk (the ninth
+#: search) walks slower on ODE (0.40 m/s over the standard table); pooled_walk (the eleventh) falls
+#: 7 % of the time on PyBullet over the whole table, which is not claimed here; goal_walk (the
+#: twelfth, within the goal over the table) is slowest on ODE in the nominal world (0.43 m/s; 0.444
+#: over the whole table); cmaes_walk (CMA-ES's stage 1b, within the goal over the table, scored with
+#: a push in every evaluation) walks 0.44 m/s on every engine here too, and so does deadline_walk
+#: (the search fitted to 30 minutes by a deadline, seed 30), with |drift| within 0.1 m on every
+#: engine; one_pipeline_walk (the search with one pipeline, seed 42, within the goal over the table)
+#: walks 0.5 m/s on every engine here; steady_walk (the same design on seed 46, no fall in the whole
+#: table) walks 0.5 m/s on MuJoCo and 0.44 on PyBullet and ODE.
 SEARCHED_GAITS = {
     "capped_walk": ({"mujoco": 0.44, "pybullet": 0.44, "ode": 0.35}, None),
     "pooled_walk": ({"mujoco": 0.44, "pybullet": 0.44, "ode": 0.44}, 0.3),
@@ -179,6 +185,7 @@ SEARCHED_GAITS = {
     "cmaes_walk": ({"mujoco": 0.44, "pybullet": 0.44, "ode": 0.44}, 0.3),
     "deadline_walk": ({"mujoco": 0.44, "pybullet": 0.44, "ode": 0.44}, 0.1),
     "one_pipeline_walk": ({"mujoco": 0.5, "pybullet": 0.5, "ode": 0.5}, 0.3),
+    "steady_walk": ({"mujoco": 0.5, "pybullet": 0.44, "ode": 0.44}, 0.3),
 }
 
 
@@ -190,7 +197,9 @@ def test_the_searched_gaits_claim_their_pace_on_every_engine_without_a_fall(name
     assert gait["problem_params"]["backend"] == "mujoco+pybullet+ode"
     assert set(gait["claims"]) == set(ENGINES)
     for engine, claim in gait["claims"].items():
-        assert claim["max_fall_rate"] == 0 and claim["max_median_flight"] <= 0.05, engine
+        assert claim["max_fall_rate"] == 0 and claim["max_median_flight"] <= GOAL_FLIGHT_CLAIM, (
+            engine
+        )
         if max_drift is not None:
             assert claim["max_median_drift"] <= max_drift, engine
         assert claim["min_median_distance"] >= DISTANCE_MARGIN * pace[engine] * 12, engine

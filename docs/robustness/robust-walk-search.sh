@@ -100,7 +100,8 @@
 # RACE_FELL=0.05 besides on fresh seeds 40-41 (design B, whose seed 39 is A's own).
 # The one-pipeline searches ran RACE_FELL=0.05 PIPELINES=1 STAGE1_RUNS=10 TOP=6
 # STAGE1B_BUDGET=1400 with design A's other knobs on fresh seeds 42-44 (design C: one stage 1b
-# from the pool's first basin, given the time of two and cut by the deadline).
+# from the pool's first basin, given the time of two and cut by the deadline), and again,
+# unchanged, on fresh seeds 45-47.
 # This is the thirteenth search, run after commit d228dc7 (nao-walk charges the flight
 # penalty past engine_cap). STAGE1B_START=all gives the twelfth's stage 1b, from all four
 # stage-1 bests; the twelfth (commit f1b7010) and the thirteenth's pilot ran before d228dc7.
