@@ -492,7 +492,13 @@ class _OptimizerHarness:
                 "variables; return one point inside the bounds (space.repair) or None"
             )
         resumed = self.build(space, 0)
-        resumed.load_state_dict(json.loads(_state_json(optimizer, stop)))
+        try:
+            resumed.load_state_dict(json.loads(_state_json(optimizer, stop)))
+        except Exception as error:
+            raise ConformanceError(
+                f"load_state_dict raised {type(error).__name__}: {error}; see the "
+                "'state_round_trip' check"
+            ) from None
         again = _recommended(resumed, "after load_state_dict")
         if (point is None) != (again is None) or (point is not None and not _same(point, again)):
             raise ConformanceError(
