@@ -398,6 +398,21 @@ class _OptimizerHarness:
             first += n
         return batches
 
+    def resume(self, optimizer: Optimizer, stop: int) -> Optimizer:
+        """A fresh optimizer (seed 0) loaded from ``optimizer``'s JSON state, taken after
+        ``stop`` asks."""
+        text = _state_json(optimizer, stop)
+        resumed = self.build(optimizer.space, 0)
+        try:
+            resumed.load_state_dict(json.loads(text))
+        except Exception as error:
+            raise ConformanceError(
+                f"load_state_dict raised {type(error).__name__}: {error} on the JSON state "
+                f"taken after {stop} asks; it must accept what state_dict returned, read "
+                "back from JSON (lists for arrays)"
+            ) from None
+        return resumed
+
     def check_factory_keywords(self) -> None:
         """factory(space, seed, **params) takes every declared parameter and builds an Optimizer."""
         values = _resolve(self.info.params, self.given, self.info.name)
@@ -436,16 +451,7 @@ class _OptimizerHarness:
                     "two runs with the same seed differ, so no state can resume one; see the "
                     "'deterministic' check"
                 )
-            text = _state_json(optimizer, stop)
-            resumed = self.build(space, 0)
-            try:
-                resumed.load_state_dict(json.loads(text))
-            except Exception as error:
-                raise ConformanceError(
-                    f"load_state_dict raised {type(error).__name__}: {error} on the JSON state "
-                    f"taken after {stop} asks; it must accept what state_dict returned, read "
-                    "back from JSON (lists for arrays)"
-                ) from None
+            resumed = self.resume(optimizer, stop)
             after = self.drive(resumed, sizes[stop:], sum(sizes[:stop]), "resumed run")
             for step, (got, expected) in enumerate(zip(after, reference[stop:])):
                 if not _same(got, expected):
@@ -491,15 +497,7 @@ class _OptimizerHarness:
                 f"{point.tolist()}, outside the space or not one point of {space.dim} "
                 "variables; return one point inside the bounds (space.repair) or None"
             )
-        resumed = self.build(space, 0)
-        try:
-            resumed.load_state_dict(json.loads(_state_json(optimizer, stop)))
-        except Exception as error:
-            raise ConformanceError(
-                f"load_state_dict raised {type(error).__name__}: {error}; see the "
-                "'state_round_trip' check"
-            ) from None
-        again = _recommended(resumed, "after load_state_dict")
+        again = _recommended(self.resume(optimizer, stop), "after load_state_dict")
         if (point is None) != (again is None) or (point is not None and not _same(point, again)):
             raise ConformanceError(
                 f"an optimizer rebuilt from the JSON state taken after {stop} asks recommends "
