@@ -102,6 +102,8 @@
 # STAGE1B_BUDGET=1400 with design A's other knobs on fresh seeds 42-44 (design C: one stage 1b
 # from the pool's first basin, given the time of two and cut by the deadline), and again,
 # unchanged, on fresh seeds 45-47.
+# The sampled-worlds searches ran design C with STAGE1_SET=worlds=standard (design D: every
+# stage-1 evaluation walks in one cell of the standard table, on MuJoCo) on fresh seeds 48-50, then 51-52.
 # This is the thirteenth search, run after commit d228dc7 (nao-walk charges the flight
 # penalty past engine_cap). STAGE1B_START=all gives the twelfth's stage 1b, from all four
 # stage-1 bests; the twelfth (commit f1b7010) and the thirteenth's pilot ran before d228dc7.
