@@ -15,6 +15,7 @@ from metaopt.assessment.replay import find_source, replay_candidate
 from metaopt.plugins import registry
 from metaopt.space import Space
 from metaopt.storage.run_store import RunStore
+from metaopt_plugins.cma_es import default_population
 from tests.conftest import metaopt_cli, one_error_line
 
 
@@ -48,7 +49,8 @@ def test_a_cmaes_run_recommends_its_last_mean_which_it_never_evaluated(runs: Pat
         run = store.run(1)
         evaluated = [e.x for e in store.evaluations(1)]
         best = store.best_candidate(run)
-        last_generation = [e.fitness for e in store.evaluations(1)][-10:]  # lambda is 10
+        generation = default_population(len(expected))  # the run left cmaes's own lambda
+        last_generation = [e.fitness for e in store.evaluations(1)][-generation:]
     assert not any(np.array_equal(x, expected) for x in evaluated)
     assert source.samples == [(e.index, e.seed) for e in best.samples]  # the best's world
     replayed = replay_candidate(source, registry(), {}).replayed.fitness
