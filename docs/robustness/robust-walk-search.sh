@@ -104,6 +104,8 @@
 # unchanged, on fresh seeds 45-47.
 # The sampled-worlds searches ran design C with STAGE1_SET=worlds=standard (design D: every
 # stage-1 evaluation walks in one cell of the standard table, on MuJoCo) on fresh seeds 48-50, then 51-52.
+# Design E is design D with its stage 1b in sampled worlds too: STAGE1B_SET="sigma0=0.05
+# flight_allowed=0.035 engine_score=worst worlds=standard", on fresh seeds 53-55.
 # This is the thirteenth search, run after commit d228dc7 (nao-walk charges the flight
 # penalty past engine_cap). STAGE1B_START=all gives the twelfth's stage 1b, from all four
 # stage-1 bests; the twelfth (commit f1b7010) and the thirteenth's pilot ran before d228dc7.
