@@ -46,12 +46,11 @@ def test_a_cmaes_run_recommends_its_last_mean_which_it_never_evaluated(runs: Pat
     assert np.array_equal(source.x, expected)
     assert "recommended by cmaes" in source.label and source.fitness is None
     with RunStore(db) as store:
-        run = store.run(1)
-        evaluated = [e.x for e in store.evaluations(1)]
-        best = store.best_candidate(run)
-        generation = default_population(len(expected))  # the run left cmaes's own lambda
-        last_generation = [e.fitness for e in store.evaluations(1)][-generation:]
-    assert not any(np.array_equal(x, expected) for x in evaluated)
+        best = store.best_candidate(store.run(1))
+        evaluations = list(store.evaluations(1))
+    generation = default_population(len(expected))  # the run left cmaes's own lambda
+    last_generation = [e.fitness for e in evaluations[-generation:]]
+    assert not any(np.array_equal(e.x, expected) for e in evaluations)
     assert source.samples == [(e.index, e.seed) for e in best.samples]  # the best's world
     replayed = replay_candidate(source, registry(), {}).replayed.fitness
     assert replayed == pytest.approx(float(np.sum(expected**2)))

@@ -103,7 +103,8 @@
 # from the pool's first basin, given the time of two and cut by the deadline), and again,
 # unchanged, on fresh seeds 45-47.
 # The sampled-worlds searches ran design C with STAGE1_SET=worlds=standard (design D: every
-# stage-1 evaluation walks in one cell of the standard table, on MuJoCo) on fresh seeds 48-50, then 51-52.
+# stage-1 evaluation walks in one cell of the standard table, on MuJoCo) on fresh seeds 48-50,
+# then 51-52.
 # Design E is design D with its stage 1b in sampled worlds too: STAGE1B_SET="sigma0=0.05
 # flight_allowed=0.035 engine_score=worst worlds=standard", on fresh seeds 53-55.
 # This is the thirteenth search, run after commit d228dc7 (nao-walk charges the flight
