@@ -2,8 +2,9 @@
 momentum by its impulse, a mass scale is the mass and inertia the engine holds, latency delays
 what the gait senses by exactly k steps, flight is the footfalls' share; and a lock phase
 saved for one model is never restored into another; worlds=standard draws a cell of the
-standard table per evaluation, worlds=pushes a push, and a candidate's figures and video show
-the world its evaluation walked."""
+standard table per evaluation (world_cells: of the named cells), worlds=pushes a push (and with
+world_cells a cell as well), and a candidate's figures and video show the world its evaluation
+walked."""
 
 from __future__ import annotations
 
@@ -297,6 +298,55 @@ def test_worlds_pushes_walks_each_evaluation_with_a_seed_drawn_push_on_every_eng
         _problem("mujoco", worlds="pushes", push=1.0, duration=7.0, lock=1.0)
     with pytest.raises(ConfigError, match="duration must be more than 6 s"):
         _problem("mujoco", worlds="pushes", **SHORT)
+
+
+def test_world_cells_draws_each_evaluation_from_the_named_cells_pushed_or_not() -> None:
+    world = {"duration": 7.0, "lock": 1.0, "noise": 0.1}
+    names = ("nominal", "servo gain x1.2", "latency 1")
+    table = [cell.name for cell in STANDARD_TABLE.cells]
+    # every cell when empty, each seed drawing the cell it drew before world_cells existed
+    every = _problem("mujoco", worlds="standard", **world)
+    drawn = [int(np.random.default_rng((seed, 1)).integers(len(table))) for seed in range(300)]
+    assert [every.world_of(seed) for seed in range(300)] == drawn
+    restricted = _problem("mujoco", worlds="standard", world_cells=",".join(names), **world)
+    assert {restricted.world_of(seed) for seed in range(300)} == {table.index(n) for n in names}
+    engines = "mujoco+pybullet"
+    pushed = _problem(engines, worlds="pushes", world_cells=" , ".join(names), **world)
+    cells = [pushed.world_of(seed) for seed in range(300)]
+    assert set(cells) == {table.index(name) for name in names}
+    x = gait_vector(load_gait())
+    try:
+        for name, gain, latency in (("servo gain x1.2", 12.0, 0), ("latency 1", 10.0, 1)):
+            seed = cells.index(table.index(name))
+            walk, _, push = pushed.walked(seed)
+            assert push is not None and push == pushed.drawn_push(seed)
+            for engine in ("mujoco", "pybullet"):  # what the cell's runner and engine hold
+                runner = walk.runner_on(engine)
+                assert runner.backend.settings.servo_gain == pytest.approx(gain)
+                assert runner.settings.latency == latency
+            given = {"push": push.impulse, "push_direction": push.direction, "push_time": push.time}
+            params = STANDARD_TABLE.cells[table.index(name)].apply(
+                _params(engines, **world, **given)
+            )
+            direct = registry().problem("nao-walk").factory(**params)
+            try:
+                expected = direct.evaluate(x, seed)
+            finally:
+                direct.close()
+            evaluation = pushed.evaluate(x, seed)
+            drawn_world = {"world": float(table.index(name)), "push_direction": push.direction,
+                           "push_time": push.time}  # fmt: skip
+            assert evaluation.metrics == {**expected.metrics, **drawn_world}
+            assert evaluation.fitness == expected.fitness
+    finally:
+        for problem in (every, restricted, pushed):
+            problem.close()
+    with pytest.raises(ConfigError, match=r"world_cells: no perturbation 'servo x2'.*accepted"):
+        _problem("mujoco", worlds="standard", world_cells="nominal,servo x2", **world)
+    with pytest.raises(ConfigError, match="may not name a cell that pushes too"):
+        _problem("mujoco", worlds="pushes", world_cells="nominal,push forward", **world)
+    with pytest.raises(ConfigError, match="with worlds=none leave it empty"):
+        _problem("mujoco", world_cells="nominal", **world)
 
 
 def test_figures_and_video_show_the_world_an_evaluation_walked() -> None:

@@ -107,6 +107,12 @@
 # then 51-52.
 # Design E is design D with its stage 1b in sampled worlds too: STAGE1B_SET="sigma0=0.05
 # flight_allowed=0.035 engine_score=worst worlds=standard", on fresh seeds 53-55.
+# STAGE1B_CELLS="NAME,NAME,..." (cell names of the standard table, joined by commas; they hold
+# spaces, which STAGE1B_SET splits on) sets nao-walk's world_cells in stage 1b: with worlds=pushes
+# each pushed evaluation also walks in one of these cells, drawn from its seed; with
+# worlds=standard the cells drawn from. Design F is design D with STAGE1B_CELLS="nominal,servo
+# gain x1.2,latency 1" (the cells where design D's gaits fell on PyBullet, besides the pushes
+# stage 1b already walks through), on fresh seeds 56-58.
 # This is the thirteenth search, run after commit d228dc7 (nao-walk charges the flight
 # penalty past engine_cap). STAGE1B_START=all gives the twelfth's stage 1b, from all four
 # stage-1 bests; the twelfth (commit f1b7010) and the thirteenth's pilot ran before d228dc7.
@@ -116,7 +122,7 @@
 # script at commit 5ed7043, the seventh at 3c42de4, the sixth at 6e1fe34, the fifth at
 # 3c8db53, the fourth at ff6956d, the third at abce00d, the second at 9d03e62.
 set -euo pipefail
-seed=${1:?usage: [DEADLINE=SECONDS STAGE1_OPTIMIZER=NAME STAGE1_BATCH=B BASIN_FELL=RATE RACE_FELL=RATE STAGE1B_BUDGET=N STAGE1B_OPTIMIZER=NAME STAGE1B_BATCH=B PIPELINES=N STAGE1_RUNS=R STAGE1B_RESAMPLE=K TOP=K STAGE1_ENGINE=E STAGE1_SET="NAME=VALUE ..." STAGE1B_START=all|raced|pool STAGE1B_SET="NAME=VALUE ..."] robust-walk-search.sh SEED}
+seed=${1:?usage: [DEADLINE=SECONDS STAGE1_OPTIMIZER=NAME STAGE1_BATCH=B BASIN_FELL=RATE RACE_FELL=RATE STAGE1B_BUDGET=N STAGE1B_OPTIMIZER=NAME STAGE1B_BATCH=B PIPELINES=N STAGE1_RUNS=R STAGE1B_RESAMPLE=K TOP=K STAGE1_ENGINE=E STAGE1_SET="NAME=VALUE ..." STAGE1B_START=all|raced|pool STAGE1B_SET="NAME=VALUE ..." STAGE1B_CELLS="NAME,..."] robust-walk-search.sh SEED}
 stage1b_budget=${STAGE1B_BUDGET:-600}
 stage1b_optimizer=${STAGE1B_OPTIMIZER:-hs}
 stage1b_batch=${STAGE1B_BATCH:-2}
@@ -171,6 +177,7 @@ if [ -n "${STAGE1B_RESAMPLE:-}" ]; then
     stage1b_args+=(--resample "$STAGE1B_RESAMPLE" --common-seeds)
 fi
 for pair in ${STAGE1B_SET:-}; do stage1b_args+=(--set "$pair"); done
+if [ -n "${STAGE1B_CELLS:-}" ]; then stage1b_args+=(--set "world_cells=$STAGE1B_CELLS"); fi
 db=robust-walk-s$seed.db
 if [ -e "$db" ]; then echo "$db exists: the stages number their runs from 1" >&2; exit 2; fi
 walk=(--set controller=steered)

@@ -21,6 +21,7 @@ from typing import TYPE_CHECKING, Any, NamedTuple
 import numpy as np
 
 from metaopt import hookimpl
+from metaopt.assessment.robustness import select_cells
 from metaopt.errors import ConfigError
 from metaopt.params import Param
 from metaopt.physics import PhysicsSettings, engine_names
@@ -51,7 +52,7 @@ from .extended import (
     stride_space,
 )
 from .robot import nao
-from .robustness import PUSH_IMPULSE, STANDARD_TABLE
+from .robustness import PUSH_IMPULSE, STANDARD_TABLE, UNSAMPLED
 from .video import film
 
 
@@ -86,6 +87,8 @@ WORLDS = ("none", "standard", "pushes")
 PUSH_AFTER_S = 2.0
 #: ... and no later than this before the episode ends (time to fall, if it will).
 PUSH_BEFORE_END_S = 3.0
+#: world_cells: the cells' names are joined by this.
+CELL_SEPARATOR = ","
 #: How several engines' fitnesses make one: the worst of them, or their mean.
 ENGINE_SCORES = ("worst", "mean")
 
@@ -156,6 +159,10 @@ PARAMS = (
           f"torso, in any horizontal direction, at a time from {PUSH_AFTER_S:g} s after walking "
           f"starts to {PUSH_BEFORE_END_S:g} s before the end",
           choices=WORLDS),
+    Param("world_cells", str, "", "with worlds=standard: the cells drawn from, their names "
+          f"joined by '{CELL_SEPARATOR}' (empty = every cell); with worlds=pushes: each pushed "
+          "evaluation also walks in one of these cells, drawn from its seed (no push cell; "
+          "empty = the nominal world), e.g. 'nominal,servo gain x1.2,latency 1'"),
 )  # fmt: skip
 
 
@@ -180,6 +187,32 @@ def _check_push_window(push: float, lock: float, duration: float) -> None:
             f"{PUSH_BEFORE_END_S:g} s before the end; duration must be more than {shortest:g} s "
             f"(got {duration:g})"
         )
+
+
+def _cell_indices(world_cells: str, worlds: str) -> tuple[int, ...]:
+    """The standard table's cells world_cells names, as indices in table order (every cell
+    when empty); ConfigError for a name the table lacks, or for cells worlds cannot draw."""
+    if not world_cells:
+        return tuple(range(len(STANDARD_TABLE.cells))) if worlds == "standard" else ()
+    if worlds == "none":
+        raise ConfigError(
+            "nao-walk: world_cells names the cells worlds=standard or worlds=pushes draws "
+            f"from; with worlds=none leave it empty (got {world_cells!r})"
+        )
+    names = [name.strip() for name in world_cells.split(CELL_SEPARATOR)]
+    try:
+        select_cells(STANDARD_TABLE, names)
+    except ConfigError as error:
+        raise ConfigError(f"nao-walk: world_cells: {error}") from None
+    cells = STANDARD_TABLE.cells
+    indices = tuple(i for i, cell in enumerate(cells) if cell.name in names)
+    pushed = [cells[i].name for i in indices if cells[i].set.get("push")]
+    if worlds == "pushes" and pushed:
+        raise ConfigError(
+            f"nao-walk: worlds=pushes draws each evaluation's push; world_cells may not name "
+            f"a cell that pushes too (got {pushed[0]!r})"
+        )
+    return indices
 
 
 class NaoWalk(Problem):
@@ -215,6 +248,7 @@ class NaoWalk(Problem):
         flight_penalty: float = 0.0,
         flight_allowed: float = FLIGHT_ALLOWED,
         worlds: str = "none",
+        world_cells: str = "",
         engine_score: str = "worst",
         engine_cap: float = 0.0,
     ) -> None:
@@ -276,11 +310,12 @@ class NaoWalk(Problem):
         _require_choice("engine_score", engine_score, ENGINE_SCORES)
         self.engine_score = engine_score
         self.engine_cap = engine_cap
+        #: the standard table's cells an evaluation's seed draws from (none: its own world)
+        self.world_cells = _cell_indices(world_cells, worlds)
         self._worlds: dict[int, NaoWalk] = {}
-        if worlds == "standard":
-            for cell in range(len(STANDARD_TABLE.cells)):
-                self._world(cell).close()  # a world refusing its parameters says so now
-                del self._worlds[cell]
+        for cell in self.world_cells:
+            self._world(cell).close()  # a world refusing its parameters says so now
+            del self._worlds[cell]
 
     @property
     def runner(self) -> EpisodeRunner:
@@ -313,10 +348,14 @@ class NaoWalk(Problem):
         friction = self.physics_on[engine or self.engines[0]].friction
         return Disturbance.draw(self.noise, seed, friction, self.runner.walk_steps)
 
-    def world_of(self, seed: int) -> int:
-        """The standard table's cell an evaluation with seed walks in (worlds=standard): drawn
-        from its own stream of the seed, apart from the noise's."""
-        return int(np.random.default_rng((seed, 1)).integers(len(STANDARD_TABLE.cells)))
+    def world_of(self, seed: int) -> int | None:
+        """The standard table's cell an evaluation with seed walks in, drawn from world_cells
+        by its own stream of the seed, apart from the noise's; None where it walks in its own
+        world (no world_cells)."""
+        if not self.world_cells:
+            return None
+        draw = np.random.default_rng((seed, 1)).integers(len(self.world_cells))
+        return self.world_cells[int(draw)]
 
     def drawn_push(self, seed: int) -> Push:
         """The push an evaluation with seed walks with (worlds=pushes): the table's impulse, its
@@ -332,21 +371,20 @@ class NaoWalk(Problem):
         """The problem of one cell of the standard table, built on first use."""
         world = self._worlds.get(cell)
         if world is None:
-            params = STANDARD_TABLE.cells[cell].apply({**self._params, "worlds": "none"})
+            params = STANDARD_TABLE.cells[cell].apply({**self._params, **UNSAMPLED})
             world = self._worlds[cell] = NaoWalk(**params)
         return world
 
     def evaluate(self, x: np.ndarray, seed: int) -> Evaluation:
-        if self.worlds == "standard":
-            cell = self.world_of(seed)
-            evaluation = self._world(cell).evaluate(x, seed)
-            return Evaluation(evaluation.fitness, {**evaluation.metrics, "world": float(cell)})
-        push = self._push_of(seed)
+        cell, push = self.world_of(seed), self._push_of(seed)
+        walk = self if cell is None else self._world(cell)
+        evaluation = walk._evaluate(x, seed, push)
+        drawn: dict[str, float] = {}
+        if cell is not None:
+            drawn["world"] = float(cell)
         if push is not None:
-            evaluation = self._evaluate(x, seed, push)
-            drawn = {"push_direction": push.direction, "push_time": push.time}
-            return Evaluation(evaluation.fitness, {**evaluation.metrics, **drawn})
-        return self._evaluate(x, seed)
+            drawn.update(push_direction=push.direction, push_time=push.time)
+        return Evaluation(evaluation.fitness, {**evaluation.metrics, **drawn})
 
     def _push_of(self, seed: int) -> Push | None:
         """The push seed draws with worlds=pushes; None otherwise (the settings' push)."""
@@ -385,10 +423,10 @@ class NaoWalk(Problem):
 
     def walked(self, seed: int) -> tuple[NaoWalk, Disturbance | None, Push | None]:
         """Where an evaluation with seed walks: the problem whose runner it uses (the seed's
-        cell's, for worlds=standard), its disturbance, and its push (None: the settings')."""
-        if self.worlds == "standard":
-            return self._world(self.world_of(seed)).walked(seed)
-        return self, self.disturbance(seed), self._push_of(seed)
+        cell's, where it draws one), its disturbance, and its push (None: the settings')."""
+        cell = self.world_of(seed)
+        walk = self if cell is None else self._world(cell)
+        return walk, walk.disturbance(seed), self._push_of(seed)
 
     def figures(self, x: np.ndarray, seed: int) -> dict[str, Figure]:
         """The paper's Figs. 6-10 of candidate x's walk on the first engine (figures.py), in the

@@ -35,11 +35,15 @@ def unlimited_friction(problem: Problem) -> str | None:
     return None
 
 
+#: The parameters that make an evaluation draw its world; a world drawn is walked without them.
+UNSAMPLED = {"worlds": "none", "world_cells": ""}
+
+
 #: Every cell starts from the gait's parameters with these perturbations at their nominal
 #: values, so that a gait searched in a perturbed world (a push, a latency, a heavier robot,
 #: sampled worlds) is tried in the table's worlds, not in its own plus each cell's.
 NOMINAL_WORLD = {"friction_scale": 1.0, "mass_scale": 1.0, "push": 0.0, "latency": 0,
-                 "worlds": "none"}  # fmt: skip
+                 **UNSAMPLED}  # fmt: skip
 
 
 STANDARD_TABLE = PerturbationTable(

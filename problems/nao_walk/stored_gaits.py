@@ -15,7 +15,7 @@ from metaopt.problem import StoredCandidate
 from metaopt.seeding import EvaluationSeeds
 
 from .plugin import CONTROLLER_KINDS, NaoWalk
-from .robustness import BACKGROUND_NOISE
+from .robustness import BACKGROUND_NOISE, UNSAMPLED
 
 #: The engines a record's metrics cover.
 ENGINES = ("mujoco", "pybullet", "ode")
@@ -109,9 +109,10 @@ def replay_over_seeds(
 ) -> list[dict]:
     """A stored gait's metrics on engine over ``seeds`` seeds (EvaluationSeeds(run_seed)) at
     ``noise``, from one fresh problem, in the nominal world (a gait searched over sampled
-    worlds, ``worlds=standard``, meets the perturbations in its robustness table instead)."""
+    worlds, ``worlds`` and ``world_cells``, meets the perturbations in its robustness table
+    instead)."""
     draw = EvaluationSeeds(run_seed)
-    params = {**record["problem_params"], "noise": noise, "worlds": "none"}
+    params = {**record["problem_params"], "noise": noise, **UNSAMPLED}
     problem = gait_problem(params, engine)
     try:
         return [dict(problem.evaluate(gait_vector(record), draw(i)).metrics) for i in range(seeds)]
