@@ -45,6 +45,15 @@ def _problem(backend: str, **given: object):
     return registry().problem("nao-walk").factory(**_params(backend, **given))
 
 
+def _evaluated(params: dict, x: np.ndarray, seed: int):
+    """x's evaluation with seed by a fresh nao-walk built from resolved params, closed after."""
+    problem = registry().problem("nao-walk").factory(**params)
+    try:
+        return problem.evaluate(x, seed)
+    finally:
+        problem.close()
+
+
 class SensingSine(SineGait):
     """The sine gait (its targets ignore the sensors), keeping every reading it was given."""
 
@@ -250,12 +259,8 @@ def test_worlds_standard_walks_each_evaluation_in_a_seed_drawn_cell_of_the_table
         for name in ("mass x1.1", "push forward"):
             index = [c.name for c in STANDARD_TABLE.cells].index(name)
             seed = cells.index(index)
-            given = STANDARD_TABLE.cells[index].apply(_params("mujoco", **world))
-            direct = registry().problem("nao-walk").factory(**given)
-            try:
-                expected = direct.evaluate(x, seed)
-            finally:
-                direct.close()
+            expected = _evaluated(STANDARD_TABLE.cells[index].apply(_params("mujoco", **world)),
+                                  x, seed)  # fmt: skip
             evaluation = sampled.evaluate(x, seed)
             assert evaluation.metrics == {**expected.metrics, "world": float(index)}
             assert evaluation.fitness == expected.fitness
@@ -281,11 +286,7 @@ def test_worlds_pushes_walks_each_evaluation_with_a_seed_drawn_push_on_every_eng
         for seed in (3, 4):
             push = pushed.drawn_push(seed)
             given = {"push": push.impulse, "push_direction": push.direction, "push_time": push.time}
-            direct = _problem(engines, **world, **given)
-            try:
-                expected = direct.evaluate(x, seed)
-            finally:
-                direct.close()
+            expected = _evaluated(_params(engines, **world, **given), x, seed)
             evaluation = pushed.evaluate(x, seed)
             drawn = {"push_direction": push.direction, "push_time": push.time}
             assert evaluation.metrics == {**expected.metrics, **drawn}
@@ -325,14 +326,8 @@ def test_world_cells_draws_each_evaluation_from_the_named_cells_pushed_or_not() 
                 assert runner.backend.settings.servo_gain == pytest.approx(gain)
                 assert runner.settings.latency == latency
             given = {"push": push.impulse, "push_direction": push.direction, "push_time": push.time}
-            params = STANDARD_TABLE.cells[table.index(name)].apply(
-                _params(engines, **world, **given)
-            )
-            direct = registry().problem("nao-walk").factory(**params)
-            try:
-                expected = direct.evaluate(x, seed)
-            finally:
-                direct.close()
+            cell = STANDARD_TABLE.cells[table.index(name)]
+            expected = _evaluated(cell.apply(_params(engines, **world, **given)), x, seed)
             evaluation = pushed.evaluate(x, seed)
             drawn_world = {"world": float(table.index(name)), "push_direction": push.direction,
                            "push_time": push.time}  # fmt: skip
