@@ -10,7 +10,7 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from metaopt.params import Param
+from metaopt.params import Param, resolve
 from metaopt.space import Space
 
 if TYPE_CHECKING:
@@ -109,3 +109,11 @@ class ProblemInfo:
     default_budget: int = 1000
     perturbations: PerturbationTable | None = None
     stored_candidates: Callable[[], Mapping[str, StoredCandidate]] | None = None
+
+    def checked_params(self, given: Mapping[str, Any]) -> dict[str, Any]:
+        """``given`` resolved against the declarations, once a problem built from it has
+        accepted it: the problem's own checks (which no single declaration can make) refuse bad
+        settings before anything is stored."""
+        params = resolve(self.params, dict(given), self.name)
+        self.factory(**params).close()
+        return params

@@ -150,10 +150,11 @@ def test_run_refuses_bad_options_in_one_line_before_storing(tmp_path, args, need
     assert not (tmp_path / "metaopt.db").exists()
 
 
-def test_a_problem_refusing_its_settings_stops_a_run_before_a_store_exists(tmp_path):
+@pytest.mark.parametrize("command", [["run"], ["compare", "--seeds", "1", "--budget", "2"]])
+def test_a_problem_refusing_its_settings_stops_a_run_before_a_store_exists(tmp_path, command):
     """The problem's own checks (here nao-walk's, which no parameter declaration can say) run
-    before the store is opened: no empty store is left behind."""
-    done = metaopt_cli("run", "-o", "hs", "-p", "nao-walk", "--set", "worlds=pushes",
+    before the store is opened, in `run` and in `compare`: no empty store is left behind."""
+    done = metaopt_cli(*command, "-o", "hs", "-p", "nao-walk", "--set", "worlds=pushes",
                        "--set", "push=1", cwd=tmp_path)  # fmt: skip
     one_error_line(done, "worlds=pushes draws each evaluation's push", "leave push at 0")
     assert not (tmp_path / "metaopt.db").exists()

@@ -33,7 +33,6 @@ from metaopt.cli.robustness import (
     robustness_summary_command,
 )
 from metaopt.errors import MetaoptError, SettingWarning
-from metaopt.params import resolve
 from metaopt.plugins import registry
 from metaopt.reporting import display
 from metaopt.reporting.recent import DEFAULT_WINDOW, recent_figures
@@ -296,8 +295,7 @@ def run_command(
         ),
     )
     spec.settings.check(spec.budget)
-    # a problem refusing its parameters says so before a store exists
-    problem_info.factory(**resolve(problem_info.params, problem_params, problem_name)).close()
+    problem_info.checked_params(problem_params)  # refused before a store exists
     with RunStore(db_path) as store:
         label = f"{optimizer_name} on {problem_name}"
         pool = build_executor(executor, workers, scheduler)

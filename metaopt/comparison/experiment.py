@@ -272,7 +272,9 @@ def _seeds(value: Any) -> tuple[int, ...]:
 
 
 def _problem_grid(table: Any, problem_info: ProblemInfo) -> dict[str, list[Any]]:
-    """Each problem parameter's values (a scalar is one value), checked against the problem."""
+    """Each problem parameter's values (a scalar is one value), checked against the problem:
+    each value against its declaration, each combination by a problem built from it, so that
+    a setting the problem refuses stops the experiment before any run is stored."""
     if not isinstance(table, dict):
         raise ConfigError("problem_settings must be a table of parameter = list of values")
     grid = {name: v if isinstance(v, list) else [v] for name, v in table.items()}
@@ -281,6 +283,8 @@ def _problem_grid(table: Any, problem_info: ProblemInfo) -> dict[str, list[Any]]
             raise ConfigError(f"problem setting {name!r} has no values")
         for value in values:
             resolve(problem_info.params, {name: value}, f"problem {problem_info.name!r}")
+    for combination in itertools.product(*grid.values()):  # the problem's own checks
+        problem_info.checked_params(dict(zip(grid, combination)))
     return grid
 
 

@@ -201,18 +201,16 @@ def _cell_indices(world_cells: str, worlds: str) -> tuple[int, ...]:
         )
     names = [name.strip() for name in world_cells.split(CELL_SEPARATOR)]
     try:
-        select_cells(STANDARD_TABLE, names)
+        chosen = select_cells(STANDARD_TABLE, names).cells
     except ConfigError as error:
         raise ConfigError(f"nao-walk: world_cells: {error}") from None
-    cells = STANDARD_TABLE.cells
-    indices = tuple(i for i, cell in enumerate(cells) if cell.name in names)
-    pushed = [cells[i].name for i in indices if cells[i].set.get("push")]
-    if worlds == "pushes" and pushed:
+    pushing = [cell.name for cell in chosen if cell.set.get("push")]
+    if worlds == "pushes" and pushing:
         raise ConfigError(
             f"nao-walk: worlds=pushes draws each evaluation's push; world_cells may not name "
-            f"a cell that pushes too (got {pushed[0]!r})"
+            f"a cell that pushes too (got {pushing[0]!r})"
         )
-    return indices
+    return tuple(STANDARD_TABLE.cells.index(cell) for cell in chosen)
 
 
 class NaoWalk(Problem):
@@ -376,8 +374,8 @@ class NaoWalk(Problem):
         return world
 
     def evaluate(self, x: np.ndarray, seed: int) -> Evaluation:
-        cell, push = self.world_of(seed), self._push_of(seed)
-        walk = self if cell is None else self._world(cell)
+        cell, walk = self._drawn_world(seed)
+        push = self._push_of(seed)
         evaluation = walk._evaluate(x, seed, push)
         drawn: dict[str, float] = {}
         if cell is not None:
@@ -385,6 +383,12 @@ class NaoWalk(Problem):
         if push is not None:
             drawn.update(push_direction=push.direction, push_time=push.time)
         return Evaluation(evaluation.fitness, {**evaluation.metrics, **drawn})
+
+    def _drawn_world(self, seed: int) -> tuple[int | None, NaoWalk]:
+        """The cell seed draws (None: none drawn) and the problem that walks in it (this one
+        where none is drawn)."""
+        cell = self.world_of(seed)
+        return cell, self if cell is None else self._world(cell)
 
     def _push_of(self, seed: int) -> Push | None:
         """The push seed draws with worlds=pushes; None otherwise (the settings' push)."""
@@ -424,8 +428,7 @@ class NaoWalk(Problem):
     def walked(self, seed: int) -> tuple[NaoWalk, Disturbance | None, Push | None]:
         """Where an evaluation with seed walks: the problem whose runner it uses (the seed's
         cell's, where it draws one), its disturbance, and its push (None: the settings')."""
-        cell = self.world_of(seed)
-        walk = self if cell is None else self._world(cell)
+        _, walk = self._drawn_world(seed)
         return walk, walk.disturbance(seed), self._push_of(seed)
 
     def figures(self, x: np.ndarray, seed: int) -> dict[str, Figure]:
