@@ -83,10 +83,11 @@
 # seeds 26-28; seed 25 ran it without BASIN_FELL and RACE_FELL; the one-seed pilot on seed 29
 # added STAGE1_ENGINE=mujoco+ode STAGE1_RUNS=1 (stage 1 scored by the worse of two engines).
 # DEADLINE=SECONDS fits the search to a wall-clock limit (with STAGE1B_START=pool, where every
-# stage 1 comes first): each stage 1b gets the time left to the deadline, less 360 s for the
+# stage 1 comes first): each stage 1b gets the time left to the deadline, less 390 s for the
 # re-check, race and final table, shared among the pipelines still to run (metaopt run
 # --max-time; STAGE1B_BUDGET stays the most it evaluates). Seeds 30-35 ran with 330 s (those
 # stages took 253-294 s on seeds 22-24); on seed 34 they took 330 s and the search 1801 s.
+# Seeds 36-58 ran with 360 s; on seed 56 they took 365 s and the search 1810 s.
 # FLAT_BEST=METRES (with STAGE1B_START=pool) starts a pipeline again when its stage 1b's best
 # scores below METRES (no candidate walks that far): another stage 1b, run seed 10 SEED + k, from
 # the pool's k-th basin (k = PIPELINES + 1, + 2, ...), while the pool has basins left and, with
@@ -112,7 +113,10 @@
 # each pushed evaluation also walks in one of these cells, drawn from its seed; with
 # worlds=standard the cells drawn from. Design F is design D with STAGE1B_CELLS="nominal,servo
 # gain x1.2,latency 1" (the cells where design D's gaits fell on PyBullet, besides the pushes
-# stage 1b already walks through), on fresh seeds 56-58.
+# stage 1b already walks through), on fresh seeds 56-58. A cell named k times is drawn k times
+# as often: design G is design D with STAGE1B_CELLS="nominal,nominal,nominal,nominal,servo gain
+# x1.2,latency 1" (a third of stage 1b's evaluations in the two cells, F's dose halved), on
+# fresh seeds 59-61.
 # This is the thirteenth search, run after commit d228dc7 (nao-walk charges the flight
 # penalty past engine_cap). STAGE1B_START=all gives the twelfth's stage 1b, from all four
 # stage-1 bests; the twelfth (commit f1b7010) and the thirteenth's pilot ran before d228dc7.
@@ -168,7 +172,7 @@ if [ -n "${FLAT_BEST:-}" ]; then
         exit 2
     fi
 fi
-later_stages=360  # seconds DEADLINE keeps for the re-check, race and final table
+later_stages=390  # seconds DEADLINE keeps for the re-check, race and final table
 least_retry=60  # seconds: FLAT_BEST starts a pipeline again only with this much time to give it
 stage1_set=()
 for pair in ${STAGE1_SET:-}; do stage1_set+=(--set "$pair"); done

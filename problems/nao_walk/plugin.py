@@ -162,7 +162,8 @@ PARAMS = (
     Param("world_cells", str, "", "with worlds=standard: the cells drawn from, their names "
           f"joined by '{CELL_SEPARATOR}' (empty = every cell); with worlds=pushes: each pushed "
           "evaluation also walks in one of these cells, drawn from its seed (no push cell; "
-          "empty = the nominal world), e.g. 'nominal,servo gain x1.2,latency 1'"),
+          "empty = the nominal world); a cell named k times is drawn k times as often, e.g. "
+          "'nominal,servo gain x1.2,latency 1' or 'nominal,nominal,servo gain x1.2'"),
 )  # fmt: skip
 
 
@@ -191,7 +192,8 @@ def _check_push_window(push: float, lock: float, duration: float) -> None:
 
 def _cell_indices(world_cells: str, worlds: str) -> tuple[int, ...]:
     """The standard table's cells world_cells names, as indices in table order (every cell
-    when empty); ConfigError for a name the table lacks, or for cells worlds cannot draw."""
+    when empty), a cell named k times k times, so that it is drawn k times as often;
+    ConfigError for a name the table lacks, or for cells worlds cannot draw."""
     if not world_cells:
         return tuple(range(len(STANDARD_TABLE.cells))) if worlds == "standard" else ()
     if worlds == "none":
@@ -210,7 +212,9 @@ def _cell_indices(world_cells: str, worlds: str) -> tuple[int, ...]:
             f"nao-walk: worlds=pushes draws each evaluation's push; world_cells may not name "
             f"a cell that pushes too (got {pushing[0]!r})"
         )
-    return tuple(STANDARD_TABLE.cells.index(cell) for cell in chosen)
+    return tuple(
+        STANDARD_TABLE.cells.index(cell) for cell in chosen for _ in range(names.count(cell.name))
+    )
 
 
 class NaoWalk(Problem):
