@@ -46,6 +46,7 @@ def refusal(tmp_path: Path, path: str, knob: str, value: str) -> str:
         ("BASIN_FELL", "5%", "a fall rate from 0 to 1"),
         ("RACE_FELL", "0,05", "a fall rate from 0 to 1"),
         ("DEADLINE", "30m", "a whole number, 1 or more"),
+        ("STAGE1_TIME", "0", "a whole number, 1 or more"),
         ("FLAT_BEST", "1m", "a fitness in metres, 0 or more"),
         ("FLAT_BEST", "-1", "a fitness in metres, 0 or more"),
     ],
@@ -60,6 +61,12 @@ def test_a_deadline_needs_every_stage_1_first(tmp_path):
     """Stage 1b's share of the time left is known only once every stage 1 has run."""
     line = refusal(tmp_path, "/usr/bin:/bin", "DEADLINE", "1800")
     assert "DEADLINE needs STAGE1B_START=pool" in line and "raced" in line
+
+
+def test_a_stage_1_time_needs_every_stage_1_in_one_stretch(tmp_path):
+    """With pipelines each running their own stage 1 before their stage 1b, no one share fits."""
+    line = refusal(tmp_path, "/usr/bin:/bin", "STAGE1_TIME", "700")
+    assert "STAGE1_TIME needs STAGE1B_START=pool" in line and "raced" in line
 
 
 def test_flat_best_needs_the_pooled_basins(tmp_path):

@@ -88,6 +88,10 @@
 # --max-time; STAGE1B_BUDGET stays the most it evaluates). Seeds 30-35 ran with 330 s (those
 # stages took 253-294 s on seeds 22-24); on seed 34 they took 330 s and the search 1801 s.
 # Seeds 36-58 ran with 360 s; on seed 56 they took 365 s and the search 1810 s.
+# STAGE1_TIME=SECONDS (with STAGE1B_START=pool) gives every stage-1 run together at most that
+# long: each run gets an even share of the stage-1 time left (metaopt run --max-time), so that a
+# slower day cuts stage 1's evaluations, not stage 1b's time. Design D's stage 1 took 668-747 s,
+# F's 825-905 s and G's (seed 59) 975 s with the same code and settings.
 # FLAT_BEST=METRES (with STAGE1B_START=pool) starts a pipeline again when its stage 1b's best
 # scores below METRES (no candidate walks that far): another stage 1b, run seed 10 SEED + k, from
 # the pool's k-th basin (k = PIPELINES + 1, + 2, ...), while the pool has basins left and, with
@@ -126,7 +130,7 @@
 # script at commit 5ed7043, the seventh at 3c42de4, the sixth at 6e1fe34, the fifth at
 # 3c8db53, the fourth at ff6956d, the third at abce00d, the second at 9d03e62.
 set -euo pipefail
-seed=${1:?usage: [DEADLINE=SECONDS STAGE1_OPTIMIZER=NAME STAGE1_BATCH=B BASIN_FELL=RATE RACE_FELL=RATE STAGE1B_BUDGET=N STAGE1B_OPTIMIZER=NAME STAGE1B_BATCH=B PIPELINES=N STAGE1_RUNS=R STAGE1B_RESAMPLE=K TOP=K STAGE1_ENGINE=E STAGE1_SET="NAME=VALUE ..." STAGE1B_START=all|raced|pool STAGE1B_SET="NAME=VALUE ..." STAGE1B_CELLS="NAME,..."] robust-walk-search.sh SEED}
+seed=${1:?usage: [DEADLINE=SECONDS STAGE1_TIME=SECONDS STAGE1_OPTIMIZER=NAME STAGE1_BATCH=B BASIN_FELL=RATE RACE_FELL=RATE STAGE1B_BUDGET=N STAGE1B_OPTIMIZER=NAME STAGE1B_BATCH=B PIPELINES=N STAGE1_RUNS=R STAGE1B_RESAMPLE=K TOP=K STAGE1_ENGINE=E STAGE1_SET="NAME=VALUE ..." STAGE1B_START=all|raced|pool STAGE1B_SET="NAME=VALUE ..." STAGE1B_CELLS="NAME,..."] robust-walk-search.sh SEED}
 stage1b_budget=${STAGE1B_BUDGET:-600}
 stage1b_optimizer=${STAGE1B_OPTIMIZER:-hs}
 stage1b_batch=${STAGE1B_BATCH:-2}
@@ -134,7 +138,7 @@ pipelines=${PIPELINES:-3}
 stage1_runs=${STAGE1_RUNS:-4}
 stage1_optimizer=${STAGE1_OPTIMIZER:-hs}
 stage1_batch=${STAGE1_BATCH:-2}
-for knob in PIPELINES STAGE1_RUNS DEADLINE; do
+for knob in PIPELINES STAGE1_RUNS DEADLINE STAGE1_TIME; do
     if ! [[ ${!knob:-1} =~ ^[1-9][0-9]*$ ]]; then
         echo "$knob must be a whole number, 1 or more; got '${!knob}'" >&2
         exit 2
@@ -158,6 +162,11 @@ case $stage1b_start in
 esac
 if [ -n "${DEADLINE:-}" ] && [ "$stage1b_start" != pool ]; then
     echo "DEADLINE needs STAGE1B_START=pool (every stage 1 before the first stage 1b); got" \
+        "STAGE1B_START=$stage1b_start" >&2
+    exit 2
+fi
+if [ -n "${STAGE1_TIME:-}" ] && [ "$stage1b_start" != pool ]; then
+    echo "STAGE1_TIME needs STAGE1B_START=pool (every stage 1 in one stretch); got" \
         "STAGE1B_START=$stage1b_start" >&2
     exit 2
 fi
@@ -188,13 +197,21 @@ walk=(--set controller=steered)
 first() { awk -F, -v n="$2" 'NR > 1 && NR <= n + 1 {print $2}' "$1"; }  # a ranking's N best
 run=0
 finals=()
+stage1_left=$((pipelines * stage1_runs))  # stage-1 runs still to start
+stage1_share() {  # with STAGE1_TIME, --max-time for the next stage-1 run: its even share
+    if [ -z "${STAGE1_TIME:-}" ]; then return; fi
+    local share=$(((STAGE1_TIME - SECONDS) / stage1_left))
+    echo --max-time $((share > 1 ? share : 1))
+}
 stage1() {  # pipeline $1's stage-1 runs; their run ids go to ids
     ids=()
     for r in $(seq 1 "$stage1_runs"); do
+        # shellcheck disable=SC2046  # --max-time and its seconds, or nothing
         metaopt run -o "$stage1_optimizer" -p nao-walk --budget 1000 \
             --seed $((100 * seed + 10 * $1 + r)) "${walk[@]}" --set backend="$stage1_engine" \
             --set flight_penalty=20 ${stage1_set[@]+"${stage1_set[@]}"} --workers 2 \
-            --batch "$stage1_batch" --db "$db"
+            --batch "$stage1_batch" $(stage1_share) --db "$db"
+        stage1_left=$((stage1_left - 1))
         run=$((run + 1))
         ids+=("$run")
     done
