@@ -91,7 +91,7 @@
 # STAGE1_TIME=SECONDS (with STAGE1B_START=pool) gives every stage-1 run together at most that
 # long: each run gets an even share of the stage-1 time left (metaopt run --max-time), so that a
 # slower day cuts stage 1's evaluations, not stage 1b's time. Design D's stage 1 took 668-747 s,
-# F's 825-905 s and G's (seed 59) 975 s with the same code and settings.
+# F's 825-905 s and G's (seed 59) 976 s with the same code and settings.
 # FLAT_BEST=METRES (with STAGE1B_START=pool) starts a pipeline again when its stage 1b's best
 # scores below METRES (no candidate walks that far): another stage 1b, run seed 10 SEED + k, from
 # the pool's k-th basin (k = PIPELINES + 1, + 2, ...), while the pool has basins left and, with

@@ -192,8 +192,8 @@ def _check_push_window(push: float, lock: float, duration: float) -> None:
 
 def _cell_indices(world_cells: str, worlds: str) -> tuple[int, ...]:
     """The standard table's cells world_cells names, as indices in table order (every cell
-    when empty), a cell named k times k times, so that it is drawn k times as often;
-    ConfigError for a name the table lacks, or for cells worlds cannot draw."""
+    when empty), each repeated as often as it is named, so that a cell named twice is drawn
+    twice as often; ConfigError for a name the table lacks, or for cells worlds cannot draw."""
     if not world_cells:
         return tuple(range(len(STANDARD_TABLE.cells))) if worlds == "standard" else ()
     if worlds == "none":
