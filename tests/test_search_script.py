@@ -15,13 +15,14 @@ SCRIPT = Path(__file__).parents[1] / "docs" / "robustness" / "robust-walk-search
 pytestmark = pytest.mark.skipif(shutil.which("bash") is None, reason="the script is bash")
 
 
-def refusal(tmp_path: Path, path: str, knob: str, value: str) -> str:
-    """The one stderr line of the script run with knob=value and PATH=path; asserts that it
-    exits 2 and leaves the working folder empty (no store, no CSV: refused before any work)."""
+def refusal(tmp_path: Path, path: str, knob: str, value: str, **knobs: str) -> str:
+    """The one stderr line of the script run with knob=value (and knobs) and PATH=path; asserts
+    that it exits 2 and leaves the working folder empty (no store, no CSV: refused before any
+    work)."""
     done = subprocess.run(
         ["bash", str(SCRIPT), "7"],
         cwd=tmp_path,
-        env={"PATH": path, knob: value},
+        env={"PATH": path, knob: value, **knobs},
         capture_output=True,
         text=True,
         timeout=60,
@@ -67,6 +68,14 @@ def test_a_stage_1_time_needs_every_stage_1_in_one_stretch(tmp_path):
     """With pipelines each running their own stage 1 before their stage 1b, no one share fits."""
     line = refusal(tmp_path, "/usr/bin:/bin", "STAGE1_TIME", "700")
     assert "STAGE1_TIME needs STAGE1B_START=pool" in line and "raced" in line
+
+
+def test_a_stage_1_time_must_leave_stage_1b_time_before_the_deadline(tmp_path):
+    """DEADLINE less the later stages' 390 s leaves 1410 s: stage 1 may take at most 1409."""
+    line = refusal(
+        tmp_path, "/usr/bin:/bin", "STAGE1_TIME", "1410", DEADLINE="1800", STAGE1B_START="pool"
+    )
+    assert "STAGE1_TIME must leave stage 1b time" in line and "at most 1409" in line
 
 
 def test_flat_best_needs_the_pooled_basins(tmp_path):

@@ -183,6 +183,12 @@ if [ -n "${FLAT_BEST:-}" ]; then
     fi
 fi
 later_stages=390  # seconds DEADLINE keeps for the re-check, race and final table
+if [ -n "${STAGE1_TIME:-}" ] && [ -n "${DEADLINE:-}" ] \
+    && [ "$STAGE1_TIME" -ge $((DEADLINE - later_stages)) ]; then
+    echo "STAGE1_TIME must leave stage 1b time before DEADLINE less the $later_stages s kept for" \
+        "the later stages: at most $((DEADLINE - later_stages - 1)); got '$STAGE1_TIME'" >&2
+    exit 2
+fi
 least_retry=60  # seconds: FLAT_BEST starts a pipeline again only with this much time to give it
 stage1_set=()
 for pair in ${STAGE1_SET:-}; do stage1_set+=(--set "$pair"); done
