@@ -314,10 +314,12 @@ def test_world_cells_draws_each_evaluation_from_the_named_cells_pushed_or_not() 
     # a cell named twice is drawn twice as often, each draw as if listed once in table order
     weighted = _problem("mujoco", worlds="standard", world_cells="latency 1,nominal,nominal",
                         **world)  # fmt: skip
-    assert weighted.world_cells == (0, 0, table.index("latency 1"))
-    shares = np.bincount([weighted.world_of(seed) for seed in range(3000)]) / 3000
-    assert shares[0] == pytest.approx(2 / 3, abs=0.03)
-    weighted.close()
+    try:
+        assert weighted.world_cells == (0, 0, table.index("latency 1"))
+        shares = np.bincount([weighted.world_of(seed) for seed in range(3000)]) / 3000
+        assert shares[0] == pytest.approx(2 / 3, abs=0.03)
+    finally:
+        weighted.close()
     engines = "mujoco+pybullet"
     pushed = _problem(engines, worlds="pushes", world_cells=" , ".join(names), **world)
     cells = [pushed.world_of(seed) for seed in range(300)]

@@ -204,21 +204,21 @@ walk=(--set controller=steered)
 first() { awk -F, -v n="$2" 'NR > 1 && NR <= n + 1 {print $2}' "$1"; }  # a ranking's N best
 run=0
 finals=()
-stage1_left=$((pipelines * stage1_runs))  # stage-1 runs still to start
-stage1_share() {  # with STAGE1_TIME, --max-time for the next stage-1 run: its even share
-    if [ -z "${STAGE1_TIME:-}" ]; then return; fi
-    local share=$(((STAGE1_TIME - SECONDS) / stage1_left))
-    echo --max-time $((share > 1 ? share : 1))
+even_share() {  # seconds: an even share of the time left to second $1 among $2 runs, at least 1
+    local share=$((($1 - SECONDS) / $2))
+    echo $((share > 1 ? share : 1))
 }
 stage1() {  # pipeline $1's stage-1 runs; their run ids go to ids
     ids=()
+    local limit=()
     for r in $(seq 1 "$stage1_runs"); do
-        # shellcheck disable=SC2046  # --max-time and its seconds, or nothing
+        if [ -n "${STAGE1_TIME:-}" ]; then  # stage 1 is the first runs (STAGE1B_START=pool)
+            limit=(--max-time "$(even_share "$STAGE1_TIME" $((pipelines * stage1_runs - run)))")
+        fi
         metaopt run -o "$stage1_optimizer" -p nao-walk --budget 1000 \
             --seed $((100 * seed + 10 * $1 + r)) "${walk[@]}" --set backend="$stage1_engine" \
             --set flight_penalty=20 ${stage1_set[@]+"${stage1_set[@]}"} --workers 2 \
-            --batch "$stage1_batch" $(stage1_share) --db "$db"
-        stage1_left=$((stage1_left - 1))
+            --batch "$stage1_batch" ${limit[@]+"${limit[@]}"} --db "$db"
         run=$((run + 1))
         ids+=("$run")
     done
@@ -233,8 +233,7 @@ race_basins() {  # $1: the ranking CSV; the rest: the runs whose bests are raced
 }
 time_share() {  # pipeline $1's share of the time left to DEADLINE, seconds (a day without one)
     if [ -z "${DEADLINE:-}" ]; then echo 86400; return; fi
-    local share=$(((DEADLINE - SECONDS - later_stages) / (pipelines - $1 + 1)))
-    echo $((share > 1 ? share : 1))
+    even_share $((DEADLINE - later_stages)) $((pipelines - $1 + 1))
 }
 stage1b() {  # pipeline $1's stage 1b, run seed $2, from the basin(s) in starts
     local limit=()
