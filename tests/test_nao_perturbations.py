@@ -347,8 +347,21 @@ def test_world_cells_draws_each_evaluation_from_the_named_cells_pushed_or_not() 
             problem.close()
     with pytest.raises(ConfigError, match=r"world_cells: no perturbation 'servo x2'.*accepted"):
         _problem("mujoco", worlds="standard", world_cells="nominal,servo x2", **world)
-    with pytest.raises(ConfigError, match="may not name a cell that pushes too"):
-        _problem("mujoco", worlds="pushes", world_cells="nominal,push forward", **world)
+    # a push cell keeps the table's own push; the other cells' evaluations get a drawn one
+    table_push = _problem("mujoco", worlds="pushes", world_cells="nominal,push forward", **world)
+    try:
+        cells = [table_push.world_of(seed) for seed in range(40)]
+        forward, nominal = cells.index(table.index("push forward")), cells.index(0)
+        walk, _, push = table_push.walked(forward)
+        assert push is None and walk.runner.settings.push == Push(PUSH_IMPULSE, 0.0, 6.0)
+        cell = STANDARD_TABLE.cells[table.index("push forward")]
+        expected = _evaluated(cell.apply(_params("mujoco", **world)), x, forward)
+        evaluation = table_push.evaluate(x, forward)
+        assert evaluation.metrics == {**expected.metrics, "world": float(cells[forward])}
+        assert table_push.walked(nominal)[2] == table_push.drawn_push(nominal)
+        assert "push_time" in table_push.evaluate(x, nominal).metrics
+    finally:
+        table_push.close()
     with pytest.raises(ConfigError, match="with worlds=none leave it empty"):
         _problem("mujoco", world_cells="nominal", **world)
 

@@ -161,8 +161,9 @@ PARAMS = (
           choices=WORLDS),
     Param("world_cells", str, "", "with worlds=standard: the cells drawn from, their names "
           f"joined by '{CELL_SEPARATOR}' (empty = every cell); with worlds=pushes: each pushed "
-          "evaluation also walks in one of these cells, drawn from its seed (no push cell; "
-          "empty = the nominal world); a cell named k times is drawn k times as often, e.g. "
+          "evaluation also walks in one of these cells, drawn from its seed (empty = the nominal "
+          "world), and a push cell's evaluation gets that cell's push instead of a drawn one; "
+          "a cell named k times is drawn k times as often, e.g. "
           "'nominal,servo gain x1.2,latency 1' or 'nominal,nominal,servo gain x1.2'"),
 )  # fmt: skip
 
@@ -206,12 +207,6 @@ def _cell_indices(world_cells: str, worlds: str) -> tuple[int, ...]:
         chosen = select_cells(STANDARD_TABLE, names).cells
     except ConfigError as error:
         raise ConfigError(f"nao-walk: world_cells: {error}") from None
-    pushing = [cell.name for cell in chosen if cell.set.get("push")]
-    if worlds == "pushes" and pushing:
-        raise ConfigError(
-            f"nao-walk: worlds=pushes draws each evaluation's push; world_cells may not name "
-            f"a cell that pushes too (got {pushing[0]!r})"
-        )
     return tuple(
         STANDARD_TABLE.cells.index(cell) for cell in chosen for _ in range(names.count(cell.name))
     )
@@ -360,7 +355,8 @@ class NaoWalk(Problem):
         return self.world_cells[int(draw)]
 
     def drawn_push(self, seed: int) -> Push:
-        """The push an evaluation with seed walks with (worlds=pushes): the table's impulse, its
+        """The push an evaluation with seed walks with (worlds=pushes; unless its cell pushes,
+        as _push_of says): the table's impulse, its
         direction and time drawn from their own stream of the seed, apart from the noise's and
         the cell's."""
         rng = np.random.default_rng((seed, 2))
@@ -395,8 +391,14 @@ class NaoWalk(Problem):
         return cell, self if cell is None else self._world(cell)
 
     def _push_of(self, seed: int) -> Push | None:
-        """The push seed draws with worlds=pushes; None otherwise (the settings' push)."""
-        return self.drawn_push(seed) if self.worlds == "pushes" else None
+        """The push seed draws with worlds=pushes, unless its cell pushes (as the table's push
+        cells do); None otherwise: the settings' push, or the cell's own."""
+        if self.worlds != "pushes":
+            return None
+        cell = self.world_of(seed)
+        if cell is not None and STANDARD_TABLE.cells[cell].set.get("push"):
+            return None
+        return self.drawn_push(seed)
 
     def _evaluate(self, x: np.ndarray, seed: int, push: Push | None = None) -> Evaluation:
         """x's evaluation on every engine, scored by engine_score; ``push`` replaces the
