@@ -121,7 +121,10 @@
 # as often: design G is design D with STAGE1B_CELLS="nominal,nominal,nominal,nominal,servo gain
 # x1.2,latency 1" (a third of stage 1b's evaluations in the two cells, F's dose halved); it ran
 # seed 59 and was stopped (stage 1 took 976 s that day). Design H is design G with
-# STAGE1_TIME=700, on fresh seeds 60-62.
+# STAGE1_TIME=700, on fresh seeds 60-62. With worlds=pushes a push cell's evaluations walk the
+# cell's own push instead of a drawn one: design I is design H with STAGE1B_CELLS="nominal,
+# nominal,nominal,push forward,servo gain x1.2,latency 1" (a sixth of stage 1b's evaluations
+# pushed as the table pushes forward), on fresh seeds 63-65.
 # This is the thirteenth search, run after commit d228dc7 (nao-walk charges the flight
 # penalty past engine_cap). STAGE1B_START=all gives the twelfth's stage 1b, from all four
 # stage-1 bests; the twelfth (commit f1b7010) and the thirteenth's pilot ran before d228dc7.
