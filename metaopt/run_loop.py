@@ -184,6 +184,53 @@ def run(
     Parameters are validated against the plugins' declarations first (ConfigError on bad input).
     Ctrl-C or SIGTERM marks the run 'interrupted' and raises RunInterrupted.
     """
+    prepared = _prepared(spec, optimizer_info, problem_info)
+    spec, problem = prepared.spec, prepared.problem
+    try:
+        run_id = store.create_run(
+            optimizer=optimizer_info.name,
+            optimizer_params=prepared.optimizer_params,
+            problem=problem_info.name,
+            problem_params=prepared.problem_params,
+            seed=spec.seed,
+            budget=spec.budget,
+            sense=Sense(problem.sense).value,
+            space=problem.space.to_json(),
+            settings=asdict(spec.settings),
+            versions=environment_versions(),
+        )
+        store.claim(run_id)
+        session = _Session(
+            run_id, spec, prepared.optimizer, problem, problem_info, store,
+            prepared.problem_params,
+        )  # fmt: skip
+        with adopt_problem(problem_info.factory, prepared.problem_params, problem):
+            return session.execute(executor or SerialExecutor(), progress)
+    finally:
+        problem.close()
+
+
+def check_run(spec: RunSpec, optimizer_info: OptimizerInfo, problem_info: ProblemInfo) -> None:
+    """Make every check run() makes before it stores anything (settings, the problem and the
+    optimizer built from them, the warm start, the mode), and nothing else: ConfigError on the
+    first bad one, so that a long script can refuse a later run's settings before it starts."""
+    _prepared(spec, optimizer_info, problem_info).problem.close()
+
+
+@dataclass(frozen=True)
+class _Prepared:
+    """What a run builds before it stores anything."""
+
+    spec: RunSpec  # with its start points fixed
+    problem: Problem  # open: the caller closes it
+    optimizer: Optimizer
+    optimizer_params: dict[str, Any]
+    problem_params: dict[str, Any]
+
+
+def _prepared(spec: RunSpec, optimizer_info: OptimizerInfo, problem_info: ProblemInfo) -> _Prepared:
+    """The spec checked, and the problem and optimizer built from it (ConfigError on bad input;
+    the problem is closed when a later check fails)."""
     if spec.budget < 1:
         raise ConfigError(f"budget must be a positive number of evaluations, got {spec.budget}")
     spec.settings.check(spec.budget)
@@ -198,31 +245,17 @@ def run(
         optimizer = optimizer_info.factory(problem.space, spec.seed, **optimizer_params)
         unfit = optimizer.budget_warning(spec.budget // spec.settings.resample)
         if unfit is not None:
-            warnings.warn(f"{optimizer_info.name}: {unfit}", SettingWarning, stacklevel=2)
+            warnings.warn(f"{optimizer_info.name}: {unfit}", SettingWarning, stacklevel=3)
         spec = _with_start_points(spec, problem.space, optimizer)
         if spec.settings.mode == "async" and not optimizer.steady_state:
             raise ConfigError(
                 f"optimizer {optimizer_info.name!r} is generational, not steady-state: it "
                 "cannot run in async mode; use --mode sync (e.g. with --workers N)"
             )
-        run_id = store.create_run(
-            optimizer=optimizer_info.name,
-            optimizer_params=optimizer_params,
-            problem=problem_info.name,
-            problem_params=problem_params,
-            seed=spec.seed,
-            budget=spec.budget,
-            sense=Sense(problem.sense).value,
-            space=problem.space.to_json(),
-            settings=asdict(spec.settings),
-            versions=environment_versions(),
-        )
-        store.claim(run_id)
-        session = _Session(run_id, spec, optimizer, problem, problem_info, store, problem_params)
-        with adopt_problem(problem_info.factory, problem_params, problem):
-            return session.execute(executor or SerialExecutor(), progress)
-    finally:
+    except BaseException:
         problem.close()
+        raise
+    return _Prepared(spec, problem, optimizer, optimizer_params, problem_params)
 
 
 def _with_start_points(spec: RunSpec, space: Space, optimizer: Optimizer) -> RunSpec:

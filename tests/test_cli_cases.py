@@ -160,6 +160,26 @@ def test_a_problem_refusing_its_settings_stops_a_run_before_a_store_exists(tmp_p
     assert not (tmp_path / "metaopt.db").exists()
 
 
+@pytest.mark.parametrize(
+    ("args", "needles"),
+    [
+        (["-p", "sphere", "--set", "sigma0=-1"], ["'sigma0' = -1.0 is invalid", "(0, inf]"]),
+        (["-p", "sphere", "--mode", "async"], ["'cmaes' is generational", "--mode sync"]),
+        (["-p", "nao-walk", "--set", "worlds=pushes", "--set", "world_cells=nominal,servo x2"],
+         ["world_cells: no perturbation 'servo x2'", "accepted: nominal"]),
+    ],
+)  # fmt: skip
+def test_run_check_makes_a_runs_checks_and_runs_and_stores_nothing(tmp_path, args, needles):
+    """`run --check` refuses what the run would refuse, including what only the built problem
+    (nao-walk's cells) or optimizer (CMA-ES cannot run async) can say, and accepts the rest."""
+    accepted = metaopt_cli("run", "-o", "cmaes", "-p", "sphere", "--mode", "sync", "--check",
+                           cwd=tmp_path)  # fmt: skip
+    assert accepted.returncode == 0, accepted.stderr
+    assert accepted.stdout.strip() == "cmaes on sphere: every setting accepted; nothing run"
+    one_error_line(metaopt_cli("run", "-o", "cmaes", *args, "--check", cwd=tmp_path), *needles)
+    assert list(tmp_path.iterdir()) == []
+
+
 @pytest.fixture(scope="module")
 def sphere_store(tmp_path_factory):
     folder = tmp_path_factory.mktemp("sphere")

@@ -110,17 +110,23 @@ def test_the_flat_check_reads_the_runs_best_from_the_store(tmp_path):
 
 
 @pytest.mark.parametrize(
-    ("knob", "value", "says"),
+    ("knob", "value", "says", "knobs"),
     [
-        ("STAGE1_OPTIMIZER", "bogus", "unknown optimizer 'bogus'"),
-        ("STAGE1_BATCH", "-1", "'--batch': -1 is not in the range"),
+        ("STAGE1_OPTIMIZER", "bogus", "unknown optimizer 'bogus'", {}),
+        ("STAGE1_BATCH", "-1", "'--batch': -1 is not in the range", {}),
+        ("STAGE1B_OPTIMIZER", "bogus", "unknown optimizer 'bogus'", {}),
+        ("STAGE1B_SET", "engine_score=best", "engine_score", {}),
+        ("STAGE1B_CELLS", "nominal,servo x2", "no perturbation 'servo x2'",
+         {"STAGE1B_SET": "worlds=pushes"}),
     ],
-)
-def test_a_bad_stage1_setting_is_refused_by_metaopt_before_a_store_exists(
-    tmp_path, knob, value, says
+)  # fmt: skip
+def test_a_bad_stage_setting_is_refused_by_metaopt_before_a_store_exists(
+    tmp_path, knob, value, says, knobs
 ):
-    """The knobs handed to `metaopt run` as they are: metaopt's own check stops the search."""
+    """The knobs handed to `metaopt run` as they are: metaopt's own check (`run --check`, for
+    stage 1b's before stage 1 starts) stops the search before any run."""
     metaopt = shutil.which("metaopt")
     if metaopt is None:
         pytest.skip("the metaopt command is not installed")
-    assert says in refusal(tmp_path, f"{Path(metaopt).parent}:/usr/bin:/bin", knob, value)
+    path = f"{Path(metaopt).parent}:/usr/bin:/bin"
+    assert says in refusal(tmp_path, path, knob, value, **knobs)

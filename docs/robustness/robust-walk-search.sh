@@ -195,7 +195,7 @@ fi
 least_retry=60  # seconds: FLAT_BEST starts a pipeline again only with this much time to give it
 stage1_set=()
 for pair in ${STAGE1_SET:-}; do stage1_set+=(--set "$pair"); done
-stage1b_args=()  # metaopt checks the values: a bad one stops the search with one line
+stage1b_args=()  # metaopt run --check refuses a bad value in one line before stage 1
 if [ -n "${STAGE1B_RESAMPLE:-}" ]; then
     stage1b_args+=(--resample "$STAGE1B_RESAMPLE" --common-seeds)
 fi
@@ -204,6 +204,17 @@ if [ -n "${STAGE1B_CELLS:-}" ]; then stage1b_args+=(--set "world_cells=$STAGE1B_
 db=robust-walk-s$seed.db
 if [ -e "$db" ]; then echo "$db exists: the stages number their runs from 1" >&2; exit 2; fi
 walk=(--set controller=steered)
+# Every stage-1 and stage-1b run's settings but its seed, start, time and store; both are
+# checked before stage 1 starts (metaopt run --check), so that a bad one costs no search time.
+stage1_run=(-o "$stage1_optimizer" -p nao-walk --budget 1000 "${walk[@]}"
+    --set backend="$stage1_engine" --set flight_penalty=20 ${stage1_set[@]+"${stage1_set[@]}"}
+    --workers 2 --batch "$stage1_batch")
+stage1b_run=(-o "$stage1b_optimizer" -p nao-walk --budget "$stage1b_budget" "${walk[@]}"
+    --set flight_penalty=50 --set backend=mujoco+pybullet+ode --set engine_score=mean
+    --set engine_cap=6 --set noise=0.1 --set fitness=progress
+    ${stage1b_args[@]+"${stage1b_args[@]}"} --workers 2 --batch "$stage1b_batch")
+metaopt run "${stage1_run[@]}" --check
+metaopt run "${stage1b_run[@]}" --check
 first() { awk -F, -v n="$2" 'NR > 1 && NR <= n + 1 {print $2}' "$1"; }  # a ranking's N best
 run=0
 finals=()
@@ -218,10 +229,8 @@ stage1() {  # pipeline $1's stage-1 runs; their run ids go to ids
         if [ -n "${STAGE1_TIME:-}" ]; then  # stage 1 is the first runs (STAGE1B_START=pool)
             limit=(--max-time "$(even_share "$STAGE1_TIME" $((pipelines * stage1_runs - run)))")
         fi
-        metaopt run -o "$stage1_optimizer" -p nao-walk --budget 1000 \
-            --seed $((100 * seed + 10 * $1 + r)) "${walk[@]}" --set backend="$stage1_engine" \
-            --set flight_penalty=20 ${stage1_set[@]+"${stage1_set[@]}"} --workers 2 \
-            --batch "$stage1_batch" ${limit[@]+"${limit[@]}"} --db "$db"
+        metaopt run "${stage1_run[@]}" --seed $((100 * seed + 10 * $1 + r)) \
+            ${limit[@]+"${limit[@]}"} --db "$db"
         run=$((run + 1))
         ids+=("$run")
     done
@@ -241,11 +250,8 @@ time_share() {  # pipeline $1's share of the time left to DEADLINE, seconds (a d
 stage1b() {  # pipeline $1's stage 1b, run seed $2, from the basin(s) in starts
     local limit=()
     if [ -n "${DEADLINE:-}" ]; then limit=(--max-time "$(time_share "$1")"); fi
-    metaopt run -o "$stage1b_optimizer" -p nao-walk --budget "$stage1b_budget" --seed "$2" \
-        "${starts[@]}" "${walk[@]}" ${limit[@]+"${limit[@]}"} --set flight_penalty=50 \
-        --set backend=mujoco+pybullet+ode --set engine_score=mean --set engine_cap=6 \
-        --set noise=0.1 --set fitness=progress ${stage1b_args[@]+"${stage1b_args[@]}"} \
-        --workers 2 --batch "$stage1b_batch" --db "$db"
+    metaopt run "${stage1b_run[@]}" --seed "$2" ${starts[@]+"${starts[@]}"} \
+        ${limit[@]+"${limit[@]}"} --db "$db"
     run=$((run + 1))
 }
 flat() {  # yes when run $1's best scored below FLAT_BEST (or none scored), no otherwise

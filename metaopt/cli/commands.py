@@ -43,6 +43,7 @@ from metaopt.run_loop import (
     RunResult,
     RunSettings,
     RunSpec,
+    check_run,
     resume,
     run,
 )
@@ -240,6 +241,13 @@ def list_plugins(name: str | None) -> None:
     default=0,
     help="Warm start: how many candidates start there [the optimizer's initial population].",
 )
+@click.option(
+    "--check",
+    is_flag=True,
+    help="Check every setting (the problem and optimizer built from them, the warm start) "
+    "and exit: nothing is run or stored. A script that runs several runs checks them all "
+    "first.",
+)
 @scheduling_options
 @db_option
 def run_command(
@@ -259,6 +267,7 @@ def run_command(
     start_from: tuple[str, ...],
     start_spread: float,
     start_points: int,
+    check: bool,
     executor: str | None,
     workers: int | None,
     scheduler: str | None,
@@ -295,6 +304,10 @@ def run_command(
         ),
     )
     spec.settings.check(spec.budget)
+    if check:
+        check_run(spec, optimizer_info, problem_info)
+        click.echo(f"{optimizer_name} on {problem_name}: every setting accepted; nothing run")
+        return
     problem_info.checked_params(problem_params)  # refused before a store exists
     with RunStore(db_path) as store:
         label = f"{optimizer_name} on {problem_name}"
