@@ -358,8 +358,9 @@ def test_world_cells_draws_each_evaluation_from_the_named_cells_pushed_or_not() 
         expected = _evaluated(cell.apply(_params("mujoco", **world)), x, forward)
         evaluation = table_push.evaluate(x, forward)
         assert evaluation.metrics == {**expected.metrics, "world": float(cells[forward])}
-        assert table_push.walked(nominal)[2] == table_push.drawn_push(nominal)
-        assert "push_time" in table_push.evaluate(x, nominal).metrics
+        drawn = table_push.drawn_push(nominal)
+        assert table_push.walked(nominal)[2] == drawn
+        assert table_push.evaluate(x, nominal).metrics["push_time"] == drawn.time
     finally:
         table_push.close()
     with pytest.raises(ConfigError, match="with worlds=none leave it empty"):

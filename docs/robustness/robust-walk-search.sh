@@ -193,26 +193,24 @@ if [ -n "${STAGE1_TIME:-}" ] && [ -n "${DEADLINE:-}" ] \
     exit 2
 fi
 least_retry=60  # seconds: FLAT_BEST starts a pipeline again only with this much time to give it
-stage1_set=()
-for pair in ${STAGE1_SET:-}; do stage1_set+=(--set "$pair"); done
-stage1b_args=()  # metaopt run --check refuses a bad value in one line before stage 1
+walk=(--set controller=steered)
+# Every stage-1 and stage-1b run's settings but its seed, start, time and store, the knobs' --set
+# after the script's (a later --set of a name wins); both are checked before stage 1 starts
+# (metaopt run --check), so that a bad value is refused in one line and costs no search time.
+stage1_run=(-o "$stage1_optimizer" -p nao-walk --budget 1000 --workers 2 --batch "$stage1_batch"
+    "${walk[@]}" --set backend="$stage1_engine" --set flight_penalty=20)
+for pair in ${STAGE1_SET:-}; do stage1_run+=(--set "$pair"); done
+stage1b_run=(-o "$stage1b_optimizer" -p nao-walk --budget "$stage1b_budget" --workers 2
+    --batch "$stage1b_batch" "${walk[@]}" --set flight_penalty=50
+    --set backend=mujoco+pybullet+ode --set engine_score=mean --set engine_cap=6 --set noise=0.1
+    --set fitness=progress)
 if [ -n "${STAGE1B_RESAMPLE:-}" ]; then
-    stage1b_args+=(--resample "$STAGE1B_RESAMPLE" --common-seeds)
+    stage1b_run+=(--resample "$STAGE1B_RESAMPLE" --common-seeds)
 fi
-for pair in ${STAGE1B_SET:-}; do stage1b_args+=(--set "$pair"); done
-if [ -n "${STAGE1B_CELLS:-}" ]; then stage1b_args+=(--set "world_cells=$STAGE1B_CELLS"); fi
+for pair in ${STAGE1B_SET:-}; do stage1b_run+=(--set "$pair"); done
+if [ -n "${STAGE1B_CELLS:-}" ]; then stage1b_run+=(--set "world_cells=$STAGE1B_CELLS"); fi
 db=robust-walk-s$seed.db
 if [ -e "$db" ]; then echo "$db exists: the stages number their runs from 1" >&2; exit 2; fi
-walk=(--set controller=steered)
-# Every stage-1 and stage-1b run's settings but its seed, start, time and store; both are
-# checked before stage 1 starts (metaopt run --check), so that a bad one costs no search time.
-stage1_run=(-o "$stage1_optimizer" -p nao-walk --budget 1000 "${walk[@]}"
-    --set backend="$stage1_engine" --set flight_penalty=20 ${stage1_set[@]+"${stage1_set[@]}"}
-    --workers 2 --batch "$stage1_batch")
-stage1b_run=(-o "$stage1b_optimizer" -p nao-walk --budget "$stage1b_budget" "${walk[@]}"
-    --set flight_penalty=50 --set backend=mujoco+pybullet+ode --set engine_score=mean
-    --set engine_cap=6 --set noise=0.1 --set fitness=progress
-    ${stage1b_args[@]+"${stage1b_args[@]}"} --workers 2 --batch "$stage1b_batch")
 metaopt run "${stage1_run[@]}" --check
 metaopt run "${stage1b_run[@]}" --check
 first() { awk -F, -v n="$2" 'NR > 1 && NR <= n + 1 {print $2}' "$1"; }  # a ranking's N best

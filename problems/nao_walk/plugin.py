@@ -355,8 +355,8 @@ class NaoWalk(Problem):
         return self.world_cells[int(draw)]
 
     def drawn_push(self, seed: int) -> Push:
-        """The push an evaluation with seed walks with (worlds=pushes; unless its cell pushes,
-        as _push_of says): the table's impulse, its
+        """The push an evaluation with seed walks with (worlds=pushes, unless its cell pushes
+        by itself): the table's impulse, its
         direction and time drawn from their own stream of the seed, apart from the noise's and
         the cell's."""
         rng = np.random.default_rng((seed, 2))
@@ -375,7 +375,7 @@ class NaoWalk(Problem):
 
     def evaluate(self, x: np.ndarray, seed: int) -> Evaluation:
         cell, walk = self._drawn_world(seed)
-        push = self._push_of(seed)
+        push = self._push_of(walk, seed)
         evaluation = walk._evaluate(x, seed, push)
         drawn: dict[str, float] = {}
         if cell is not None:
@@ -390,13 +390,11 @@ class NaoWalk(Problem):
         cell = self.world_of(seed)
         return cell, self if cell is None else self._world(cell)
 
-    def _push_of(self, seed: int) -> Push | None:
-        """The push seed draws with worlds=pushes, unless its cell pushes (as the table's push
-        cells do); None otherwise: the settings' push, or the cell's own."""
-        if self.worlds != "pushes":
-            return None
-        cell = self.world_of(seed)
-        if cell is not None and STANDARD_TABLE.cells[cell].set.get("push"):
+    def _push_of(self, walk: NaoWalk, seed: int) -> Push | None:
+        """The push seed draws with worlds=pushes, unless the world it walks in (walk: a
+        cell's, or this one) pushes by its own settings, as the table's push cells do; None
+        otherwise: that world's own push, or none."""
+        if self.worlds != "pushes" or walk.episode.push is not None:
             return None
         return self.drawn_push(seed)
 
@@ -435,7 +433,7 @@ class NaoWalk(Problem):
         """Where an evaluation with seed walks: the problem whose runner it uses (the seed's
         cell's, where it draws one), its disturbance, and its push (None: the settings')."""
         _, walk = self._drawn_world(seed)
-        return walk, walk.disturbance(seed), self._push_of(seed)
+        return walk, walk.disturbance(seed), self._push_of(walk, seed)
 
     def figures(self, x: np.ndarray, seed: int) -> dict[str, Figure]:
         """The paper's Figs. 6-10 of candidate x's walk on the first engine (figures.py), in the
