@@ -1,5 +1,6 @@
-"""The extended, stride and steered CPG controllers: their spaces, rhythm, joint targets, the
-steered one's heading feedback on an engine, and nao-walk's switch."""
+"""The extended, stride, steered and balanced CPG controllers: their spaces, rhythm, joint
+targets, the steered one's heading feedback on an engine, the balanced one's stepping strategy,
+and nao-walk's switch."""
 
 from __future__ import annotations
 
@@ -12,14 +13,17 @@ from metaopt import ConfigError
 from metaopt.assessment.robustness import summarize
 from metaopt_problems.nao_walk.episode import Sensors
 from metaopt_problems.nao_walk.extended import (
+    BALANCED_PARAM_NAMES,
     PARAM_NAMES,
     RAMP_S,
     STEER_LIMIT,
     STEERED_PARAM_NAMES,
     STRIDE_PARAM_NAMES,
+    BalancedCpg,
     ExtendedCpg,
     SteeredCpg,
     StrideCpg,
+    balanced_space,
     extended_space,
     steered_space,
     stride_space,
@@ -47,7 +51,8 @@ def params(controller: type[ExtendedCpg] = ExtendedCpg, **given: float) -> list[
     return [middle[name] for name in controller.param_names]
 
 
-SPACES = {ExtendedCpg: extended_space, StrideCpg: stride_space, SteeredCpg: steered_space}
+SPACES = {ExtendedCpg: extended_space, StrideCpg: stride_space, SteeredCpg: steered_space,
+          BalancedCpg: balanced_space}  # fmt: skip
 
 
 def drive(controller: ExtendedCpg, steps: int, sensors: Sensors | None = None) -> np.ndarray:
@@ -150,7 +155,7 @@ def test_bad_parameters_are_config_errors():
     with pytest.raises(ConfigError, match="stride controller takes 14 parameters"):
         StrideCpg(params(), LIMITS)
     with pytest.raises(ConfigError, match="unknown controller 'fast'; accepted: paper, extended, "
-                       "stride, steered"):  # fmt: skip
+                       "stride, steered, balanced"):  # fmt: skip
         NaoWalk(controller="fast")
 
 
@@ -221,6 +226,48 @@ def test_turned_left_the_left_leg_steps_further(yaw, asymmetry):
     turned = drive(SteeredCpg(x, LIMITS), 300, Sensors(yaw=yaw))
     np.testing.assert_allclose(turned[:, 1], (1 + asymmetry) * straight[:, 1], atol=1e-12)
     np.testing.assert_allclose(turned[:, 6], (1 - asymmetry) * straight[:, 6], atol=1e-12)
+
+
+def test_balanced_space_adds_the_stepping_gains_to_the_steered_one():
+    space = balanced_space()
+    assert space.names == BALANCED_PARAM_NAMES == (*STEERED_PARAM_NAMES, "place_gain",
+                                                   "place_rate")  # fmt: skip
+    steered = steered_space()
+    np.testing.assert_array_equal(space.lower[:-2], steered.lower)
+    np.testing.assert_array_equal(space.upper[:-2], steered.upper)
+    assert np.all(space.lower[-2:] < 0.0) and np.all(space.upper[-2:] > 0.0)
+
+
+def test_balanced_without_stepping_gains_is_the_steered_controller():
+    sensors = Sensors(left_hip=0.1, right_hip=-0.05, roll=0.1, pitch=-0.1, yaw=0.2)
+    x = params(BalancedCpg, feedback=1.0, steer=1.0, place_gain=0.0, place_rate=0.0)
+    balanced, steered = BalancedCpg(x, LIMITS), SteeredCpg(x[:-2], LIMITS)
+    np.testing.assert_array_equal(drive(balanced, 300, sensors), drive(steered, 300, sensors))
+
+
+def test_a_torso_pitched_forward_moves_both_hips_by_the_gain_and_the_rate():
+    """Hip targets move by place_gain x pitch + place_rate x pitch rate (per control step),
+    the ankles by the opposite (the feet stay parallel to the torso); knees and rolls don't."""
+    x = params(BalancedCpg, hip_bias=0.0, hip_swing=10.0, place_gain=0.5, place_rate=0.1)
+    still = drive(BalancedCpg(x, LIMITS), 200)
+    balanced = BalancedCpg(x, LIMITS)
+    sensors, rows = Sensors(), []
+    for step in range(200):  # pitch 0 until step 100, then 0.1 rad from then on
+        sensors.time, sensors.pitch = step * STEP, 0.1 if step >= 100 else 0.0
+        rows.append(balanced.act(sensors))
+    moved = np.array(rows) - still
+    expected = np.zeros(200)
+    expected[100:] = 0.5 * 0.1
+    expected[100] += 0.1 * 0.1 / STEP  # the step the pitch changed: its rate
+    for hip, knee, ankle in ((1, 2, 3), (6, 7, 8)):
+        np.testing.assert_allclose(moved[:, hip], expected, atol=1e-12)
+        np.testing.assert_allclose(moved[:, ankle], -expected, atol=1e-12)
+        np.testing.assert_array_equal(moved[:, knee], 0.0)
+    np.testing.assert_array_equal(moved[:, [0, 4, 5, 9]], 0.0)
+    balanced.reset()  # the rate starts again from the first pitch sensed
+    assert balanced.act(Sensors(pitch=0.1))[1] == pytest.approx(
+        BalancedCpg(x, LIMITS).act(Sensors())[1] + 0.5 * 0.1, abs=1e-12
+    )
 
 
 def test_the_runner_senses_the_torso_heading_since_walking_began():

@@ -90,6 +90,14 @@ _STEERED_BOUNDS: tuple[tuple[str, float, float, str], ...] = (
     ("steer", 0.0, 4.0, "heading error into stride asymmetry, per radian (0: no steering)"),
 )
 STEERED_PARAM_NAMES: tuple[str, ...] = tuple(name for name, *_ in _STEERED_BOUNDS)
+
+#: The balanced controller's: the steered one's and the stepping strategy's two gains.
+_BALANCED_BOUNDS: tuple[tuple[str, float, float, str], ...] = (
+    *_STEERED_BOUNDS,
+    ("place_gain", -1.5, 1.5, "torso pitch into both hips' pitch, rad per rad"),
+    ("place_rate", -0.3, 0.3, "torso pitch rate into both hips' pitch, rad per rad/s"),
+)
+BALANCED_PARAM_NAMES: tuple[str, ...] = tuple(name for name, *_ in _BALANCED_BOUNDS)
 #: The steered controller's largest stride asymmetry: a leg's hip swing x (1 +- this).
 STEER_LIMIT = 0.5
 
@@ -114,6 +122,11 @@ def stride_space() -> Space:
 def steered_space() -> Space:
     """The steered controller's decision variables, named and bounded."""
     return _space(_STEERED_BOUNDS)
+
+
+def balanced_space() -> Space:
+    """The balanced controller's decision variables, named and bounded."""
+    return _space(_BALANCED_BOUNDS)
 
 
 @functools.cache
@@ -197,10 +210,16 @@ class ExtendedCpg:
         roll = ramp * (self._sway_s * s + self._sway_q * q) + self._roll_gain * sensors.roll
         ankle = ramp * self._ankle_bias + self._pitch_gain * sensors.pitch
         left_swing, right_swing = self._hip_swings(sensors)
+        placement = self._placement(sensors)
         return (
-            *self._leg(ramp, s, q, y1, ankle, roll, left_swing, 0),
-            *self._leg(ramp, -s, -q, y2, ankle, roll, right_swing, 5),
+            *self._leg(ramp, s, q, y1, ankle, roll, left_swing, placement, 0),
+            *self._leg(ramp, -s, -q, y2, ankle, roll, right_swing, placement, 5),
         )
+
+    def _placement(self, sensors: Sensors) -> float:
+        """What both hips' pitch targets move by from the torso's sensed motion, radians: none
+        here."""
+        return 0.0
 
     def _hip_swings(self, sensors: Sensors) -> tuple[float, float]:
         """The left and the right hip's swing amplitude, radians: both hip_swing here."""
@@ -221,14 +240,15 @@ class ExtendedCpg:
         ankle: float,
         roll: float,
         hip_swing: float,
+        placement: float,
         first: int,
     ) -> tuple[float, float, float, float, float]:
         """One leg's clipped (hip roll, hip, knee, ankle, ankle roll), its hip swinging by
-        ``hip_swing``; the ankle pitch keeps the foot parallel to the torso (from the clipped
-        hip and knee) plus ``ankle`` and the leg's ankle rhythm."""
+        ``hip_swing`` and moved by ``placement``; the ankle pitch keeps the foot parallel to the
+        torso (from the clipped hip and knee) plus ``ankle`` and the leg's ankle rhythm."""
         limits = self._limits
         lift, ankle_swing = self._knee_and_ankle(s, q, y)
-        hip = _clip(ramp * (self._hip_bias + hip_swing * s), limits[first + 1])
+        hip = _clip(ramp * (self._hip_bias + hip_swing * s) + placement, limits[first + 1])
         knee = _clip(-ramp * (self._knee_bias + lift), limits[first + 2])
         return (
             _clip(roll, limits[first]),
@@ -273,6 +293,30 @@ class SteeredCpg(StrideCpg):
         +-STEER_LIMIT: turned left (yaw > 0), the left leg steps further and turns it back."""
         u = _clip(self._steer * sensors.yaw, (-STEER_LIMIT, STEER_LIMIT))
         return self._hip_swing * (1.0 + u), self._hip_swing * (1.0 - u)
+
+
+class BalancedCpg(SteeredCpg):
+    """The balanced controller: the steered one, placing both feet further ahead as the torso
+    pitches forward (a stepping strategy against pushes)."""
+
+    param_names = BALANCED_PARAM_NAMES
+    label = "the balanced controller"
+
+    def _configure(self, values: Mapping[str, float]) -> None:
+        super()._configure(values)
+        self._place_gain, self._place_rate = values["place_gain"], values["place_rate"]
+        self._last_pitch: float | None = None
+
+    def reset(self) -> None:
+        super().reset()
+        self._last_pitch = None
+
+    def _placement(self, sensors: Sensors) -> float:
+        """place_gain x pitch + place_rate x (pitch - the last step's pitch) / control step."""
+        last = sensors.pitch if self._last_pitch is None else self._last_pitch
+        self._last_pitch = sensors.pitch
+        rate = (sensors.pitch - last) / CONTROL_STEP_S
+        return self._place_gain * sensors.pitch + self._place_rate * rate
 
 
 def _clip(value: float, limits: tuple[float, float]) -> float:

@@ -44,9 +44,11 @@ from .episode import (
     fitness,
 )
 from .extended import (
+    BalancedCpg,
     ExtendedCpg,
     SteeredCpg,
     StrideCpg,
+    balanced_space,
     extended_space,
     steered_space,
     stride_space,
@@ -70,13 +72,14 @@ def _paper_cpg(params: list[float], limits: Mapping[str, tuple[float, float]]) -
     )
 
 
-#: The controllers nao-walk can tune: the paper's, and the extended, stride and steered ones
-#: of extended.py.
+#: The controllers nao-walk can tune: the paper's, and the extended, stride, steered and
+#: balanced ones of extended.py.
 CONTROLLER_KINDS = {
     "paper": ControllerKind(cpg_space, _paper_cpg),
     "extended": ControllerKind(extended_space, ExtendedCpg),
     "stride": ControllerKind(stride_space, StrideCpg),
     "steered": ControllerKind(steered_space, SteeredCpg),
+    "balanced": ControllerKind(balanced_space, BalancedCpg),
 }
 CONTROLLERS = tuple(CONTROLLER_KINDS)
 #: worlds: none, one cell of the standard perturbation table drawn per evaluation, or a push
@@ -104,8 +107,8 @@ PARAMS = (
           "the slower engines must catch up, and running there still costs", low=0.0),
     Param("controller", str, "paper", "paper (the paper's CPG and its 10 parameters), "
           "extended (sway, knee lift, torso feedback; docs/nao-walk.md), stride (extended, "
-          "with a knee phase and an ankle push-off) or steered (stride, with heading "
-          "feedback)", choices=CONTROLLERS),
+          "with a knee phase and an ankle push-off), steered (stride, with heading "
+          "feedback) or balanced (steered, with a stepping strategy)", choices=CONTROLLERS),
     Param("fitness", str, "robust", "robust (monotone, default), paper (eq. 9 as printed) or "
           "progress (a fall costs 1 m and the walk it cut short)",
           choices=FITNESS_KINDS),
