@@ -50,6 +50,8 @@ def refusal(tmp_path: Path, path: str, knob: str, value: str, **knobs: str) -> s
         ("STAGE1_TIME", "0", "a whole number, 1 or more"),
         ("FLAT_BEST", "1m", "a fitness in metres, 0 or more"),
         ("FLAT_BEST", "-1", "a fitness in metres, 0 or more"),
+        ("FLAT_FELL", "90%", "a share of candidates from 0 to 1"),
+        ("FLAT_FELL", "1.5", "a share of candidates from 0 to 1"),
     ],
 )
 def test_a_bad_knob_stops_the_search_with_one_line(tmp_path, knob, value, accepted):
@@ -84,6 +86,12 @@ def test_flat_best_needs_the_pooled_basins(tmp_path):
     assert "FLAT_BEST needs STAGE1B_START=pool" in line and "raced" in line
 
 
+def test_flat_fell_needs_flat_best(tmp_path):
+    """FLAT_FELL widens FLAT_BEST's test; alone it would do nothing, so it is refused."""
+    line = refusal(tmp_path, "/usr/bin:/bin", "FLAT_FELL", "0.9", STAGE1B_START="pool")
+    assert "FLAT_FELL needs FLAT_BEST" in line
+
+
 def test_the_flat_check_reads_the_runs_best_from_the_store(tmp_path):
     """The script's own flat(): yes when the run's best (from `metaopt show`) scores below
     FLAT_BEST, no otherwise; a store it cannot read stops the search (exit not 0)."""
@@ -96,10 +104,9 @@ def test_the_flat_check_reads_the_runs_best_from_the_store(tmp_path):
     shown = subprocess.run([metaopt, "show", "1", "--db", str(db), "--format", "json"],
                            check=True, capture_output=True, text=True, timeout=60)  # fmt: skip
     best = json.loads(shown.stdout)["best"]["fitness"]
-    function = re.search(r"^flat\(\) \{.*?^\}$", SCRIPT.read_text(), re.S | re.M).group(0)
 
     def verdict(flat_best: float, store: Path) -> subprocess.CompletedProcess:
-        script = f"set -euo pipefail\n{function}\ndb={store}\nFLAT_BEST={flat_best}\n"
+        script = f"set -euo pipefail\n{flat_function()}\ndb={store}\nFLAT_BEST={flat_best}\n"
         script += 'verdict=$(flat 1)\necho "$verdict"\n'
         return subprocess.run(["bash", "-c", script], capture_output=True, text=True, timeout=60)
 
@@ -107,6 +114,49 @@ def test_the_flat_check_reads_the_runs_best_from_the_store(tmp_path):
     assert verdict(best - 1, db).stdout == "no\n"
     unread = verdict(best + 1, tmp_path / "missing.db")
     assert unread.returncode != 0 and unread.stdout == ""  # stopped before any verdict
+
+
+def flat_function() -> str:
+    """The script's own flat() function, as bash source."""
+    return re.search(r"^flat\(\) \{.*?^\}$", SCRIPT.read_text(), re.S | re.M).group(0)
+
+
+def test_the_flat_check_also_reads_the_share_of_the_last_candidates_that_fell(tmp_path):
+    """With FLAT_FELL, flat() says yes when at least that share of the run's last 100
+    candidates fell (`metaopt show --recent 100`), whatever the best scored; a problem without
+    a fall metric is flat only by its best."""
+    metaopt = shutil.which("metaopt")
+    if metaopt is None:
+        pytest.skip("the metaopt command is not installed")
+
+    def stored(problem: str, *settings: str) -> tuple[Path, float, float | None]:
+        db = tmp_path / f"{problem}.db"
+        run = ["run", "-o", "random", "-p", problem, "--budget", "6", "--seed", "3",
+               *settings, "--db", str(db)]  # fmt: skip
+        subprocess.run([metaopt, *run], check=True, capture_output=True, timeout=300)
+        shown = json.loads(subprocess.run(
+            [metaopt, "show", "1", "--recent", "100", "--db", str(db), "--format", "json"],
+            check=True, capture_output=True, text=True, timeout=60).stdout)  # fmt: skip
+        fell = shown["recent"]["metrics"].get("fell", {}).get("share")
+        return db, shown["best"]["fitness"], fell
+
+    def verdict(store: Path, flat_best: float, flat_fell: float) -> str:
+        script = f"set -euo pipefail\n{flat_function()}\ndb={store}\n"
+        script += f"FLAT_BEST={flat_best}\nFLAT_FELL={flat_fell}\n"
+        script += 'verdict=$(flat 1)\necho "$verdict"\n'
+        done = subprocess.run(["bash", "-c", script], capture_output=True, text=True, timeout=60)
+        assert done.returncode == 0, done.stderr
+        return done.stdout.strip()
+
+    walk, best, fell = stored("nao-walk", "--set", "duration=2", "--set", "lock=1")
+    assert fell is not None and 0.0 <= fell <= 1.0
+    below = min(best, 0.0) - 1.0  # a FLAT_BEST the best passes, so only the falls decide
+    assert verdict(walk, below, fell) == "yes"
+    if fell < 1.0:
+        assert verdict(walk, below, round(fell + 0.01, 6)) == "no"
+    sphere, best, fell = stored("sphere")
+    assert fell is None  # no fall metric: FLAT_FELL never makes it flat
+    assert verdict(sphere, min(best, 0.0) - 1.0, 0.0) == "no"
 
 
 @pytest.mark.parametrize(

@@ -186,6 +186,7 @@ SEARCHED_GAITS = {
     "deadline_walk": ({"mujoco": 0.44, "pybullet": 0.44, "ode": 0.44}, 0.1),
     "one_pipeline_walk": ({"mujoco": 0.5, "pybullet": 0.5, "ode": 0.5}, 0.3),
     "steady_walk": ({"mujoco": 0.5, "pybullet": 0.44, "ode": 0.44}, 0.3),
+    "balanced_walk": ({"mujoco": 0.5, "pybullet": 0.44, "ode": 0.44}, 0.3),
 }
 
 
