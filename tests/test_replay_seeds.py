@@ -85,4 +85,6 @@ def test_replay_takes_a_stored_gait_by_name_without_a_store(tmp_path) -> None:
     assert f"{expected.fitness:.6g}" in fitness_row
     assert not (tmp_path / "metaopt.db").exists()
     unknown = metaopt_cli("replay", "hs_wlak", cwd=tmp_path)
-    assert unknown.returncode == 2 and "neither a stored candidate (capped_walk" in unknown.stderr
+    assert unknown.returncode == 2 and "neither a stored candidate (balanced_walk, capped_walk" in (
+        unknown.stderr
+    )
