@@ -296,8 +296,9 @@ class SteeredCpg(StrideCpg):
 
 
 class BalancedCpg(SteeredCpg):
-    """The balanced controller: the steered one, placing both feet further ahead as the torso
-    pitches forward (a stepping strategy against pushes)."""
+    """The balanced controller: the steered one, moving both hips' pitch with the torso's pitch
+    and its rate (positive gains place the feet further ahead as the torso pitches forward, a
+    stepping strategy; negative ones extend the hips, pulling the torso back upright)."""
 
     param_names = BALANCED_PARAM_NAMES
     label = "the balanced controller"
