@@ -264,9 +264,9 @@ def test_a_torso_pitched_forward_moves_both_hips_by_the_gain_and_the_rate():
         np.testing.assert_allclose(moved[:, ankle], -expected, atol=1e-12)
         np.testing.assert_array_equal(moved[:, knee], 0.0)
     np.testing.assert_array_equal(moved[:, [0, 4, 5, 9]], 0.0)
-    balanced.reset()  # the rate starts again from the first pitch sensed
-    assert balanced.act(Sensors(pitch=0.1))[1] == pytest.approx(
-        BalancedCpg(x, LIMITS).act(Sensors())[1] + 0.5 * 0.1, abs=1e-12
+    balanced.reset()  # the rate starts again from the first pitch sensed, not from the last 0.1
+    assert balanced.act(Sensors(pitch=0.2))[1] == pytest.approx(
+        BalancedCpg(x, LIMITS).act(Sensors())[1] + 0.5 * 0.2, abs=1e-12
     )
 
 

@@ -123,15 +123,16 @@ def flat_function() -> str:
 
 def test_the_flat_check_also_reads_the_share_of_the_last_candidates_that_fell(tmp_path):
     """With FLAT_FELL, flat() says yes when at least that share of the run's last 100
-    candidates fell (`metaopt show --recent 100`), whatever the best scored; a problem without
-    a fall metric is flat only by its best."""
+    candidates fell (`metaopt show --recent 100`), whatever the best scored, and no below it;
+    a problem without a fall metric is flat only by its best; a run without an evaluation is
+    flat whatever FLAT_FELL says."""
     metaopt = shutil.which("metaopt")
     if metaopt is None:
         pytest.skip("the metaopt command is not installed")
 
     def stored(problem: str, *settings: str) -> tuple[Path, float, float | None]:
         db = tmp_path / f"{problem}.db"
-        run = ["run", "-o", "random", "-p", problem, "--budget", "6", "--seed", "3",
+        run = ["run", "-o", "random", "-p", problem, "--budget", "6", "--seed", "2",
                *settings, "--db", str(db)]  # fmt: skip
         subprocess.run([metaopt, *run], check=True, capture_output=True, timeout=300)
         shown = json.loads(subprocess.run(
@@ -140,7 +141,7 @@ def test_the_flat_check_also_reads_the_share_of_the_last_candidates_that_fell(tm
         fell = shown["recent"]["metrics"].get("fell", {}).get("share")
         return db, shown["best"]["fitness"], fell
 
-    def verdict(store: Path, flat_best: float, flat_fell: float) -> str:
+    def verdict(store: Path, flat_best: float, flat_fell: float | str) -> str:
         script = f"set -euo pipefail\n{flat_function()}\ndb={store}\n"
         script += f"FLAT_BEST={flat_best}\nFLAT_FELL={flat_fell}\n"
         script += 'verdict=$(flat 1)\necho "$verdict"\n'
@@ -149,14 +150,19 @@ def test_the_flat_check_also_reads_the_share_of_the_last_candidates_that_fell(tm
         return done.stdout.strip()
 
     walk, best, fell = stored("nao-walk", "--set", "duration=2", "--set", "lock=1")
-    assert fell is not None and 0.0 <= fell <= 1.0
+    assert fell is not None and 0.0 < fell < 1.0  # some fell, some did not (4 of 6)
     below = min(best, 0.0) - 1.0  # a FLAT_BEST the best passes, so only the falls decide
+    assert verdict(walk, below, "") == "no"
     assert verdict(walk, below, fell) == "yes"
-    if fell < 1.0:
-        assert verdict(walk, below, round(fell + 0.01, 6)) == "no"
+    assert verdict(walk, below, round(fell + 0.01, 6)) == "no"
     sphere, best, fell = stored("sphere")
     assert fell is None  # no fall metric: FLAT_FELL never makes it flat
     assert verdict(sphere, min(best, 0.0) - 1.0, 0.0) == "no"
+    empty = tmp_path / "empty.db"  # stopped by its time limit before its first evaluation
+    subprocess.run([metaopt, "run", "-o", "random", "-p", "sphere", "--budget", "5",
+                    "--max-time", "0.000001", "--db", str(empty)],
+                   capture_output=True, timeout=120)  # fmt: skip
+    assert verdict(empty, 1.0, "") == verdict(empty, 1.0, 0.9) == "yes"
 
 
 @pytest.mark.parametrize(

@@ -274,7 +274,8 @@ flat() {  # yes when run $1's best scored below FLAT_BEST (or none scored), or w
     # FLAT_FELL (if set) of its last 100 candidates fell; no otherwise
     metaopt show "$1" --recent 100 --db "$db" --format json | python3 -c 'import json, sys
 shown = json.load(sys.stdin)
-best, fell = shown["best"], shown["recent"]["metrics"].get("fell", {}).get("share")
+best, recent = shown["best"], shown["recent"] or {"metrics": {}}  # None: no evaluation
+fell = recent["metrics"].get("fell", {}).get("share")
 flat = best is None or best["fitness"] < float(sys.argv[1])
 flat = flat or (sys.argv[2] != "" and fell is not None and fell >= float(sys.argv[2]))
 print("yes" if flat else "no")' "$FLAT_BEST" "${FLAT_FELL:-}"
