@@ -22,12 +22,15 @@ def repair_param(
 
 @dataclass(frozen=True)
 class Variable:
-    """One real decision variable with closed bounds [lower, upper]."""
+    """One real decision variable with closed bounds [lower, upper]; ``neutral``, when given, is
+    the value at which the variable leaves the problem as it was without it (e.g. a feedback
+    gain of 0), so a start point of a problem that lacks it can take that value."""
 
     name: str
     lower: float
     upper: float
     description: str = ""
+    neutral: float | None = None
 
 
 class Space:
@@ -50,6 +53,11 @@ class Space:
                 raise ConfigError(
                     f"variable {v.name!r} has lower bound {v.lower} >= upper bound {v.upper}; "
                     "lower must be strictly below upper"
+                )
+            if v.neutral is not None and not v.lower <= v.neutral <= v.upper:
+                raise ConfigError(
+                    f"variable {v.name!r} has neutral value {v.neutral} outside its bounds "
+                    f"[{v.lower}, {v.upper}]; a neutral value must lie within them"
                 )
         self.variables: tuple[Variable, ...] = tuple(variables)
         self.names: tuple[str, ...] = tuple(names)
@@ -115,6 +123,7 @@ class Space:
         """Plain-JSON description (stored with each run)."""
         return [
             {"name": v.name, "lower": v.lower, "upper": v.upper, "description": v.description}
+            | ({} if v.neutral is None else {"neutral": v.neutral})
             for v in self.variables
         ]
 

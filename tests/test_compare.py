@@ -285,8 +285,13 @@ def test_an_edited_experiment_under_the_same_name_is_refused(tmp_path: Path) -> 
         ('problem = "nao-walk"\nseeds = 1\n[[optimizers]]\nname = "hs"\nbudget = 4\n'
          'settings = { start_from = "goal_walk" }\n',  # a steered gait, the paper's controller
          "'goal_walk' has the variables"),
+        ('problem = "nao-walk"\nseeds = 1\n[problem_settings]\n'
+         'controller = ["steered", "balanced"]\n[[optimizers]]\nname = "hs"\nbudget = 4\n'
+         'settings = { start_from = "goal_walk" }\n',  # fits both, with 15 and 17 values
+         "start_from 'goal_walk' gives different start points in different cells"),
     ],
-    ids=["unknown optimizer", "missing budget", "bad TOML", "unknown start", "other variables"],
+    ids=["unknown optimizer", "missing budget", "bad TOML", "unknown start", "other variables",
+         "start per cell"],
 )  # fmt: skip
 def test_a_bad_experiment_file_is_one_clear_error(tmp_path: Path, text: str, message: str) -> None:
     (tmp_path / "bad.toml").write_text(text)

@@ -5,11 +5,11 @@ import numpy as np
 import pytest
 
 import metaopt
-from metaopt import ConfigError, Space
+from metaopt import ConfigError, Space, Variable
 from metaopt.plugins import registry
 from metaopt.run_loop import RunSettings, RunSpec, resume, run
 from metaopt.storage.run_store import RunStore
-from metaopt.warm_start import start_points
+from metaopt.warm_start import fitted_start, start_points
 from metaopt_problems.nao_walk.stored_gaits import gait_vector, load_gait
 from tests.conftest import metaopt_cli
 from tests.test_run_loop import _stopping_sphere
@@ -185,6 +185,57 @@ def test_run_start_from_a_candidate_of_other_variables_is_one_line(tmp_path) -> 
     assert other.returncode == 2
     assert "is a candidate of 'nao-walk', not of 'sphere'" in other.stderr
     assert not (tmp_path / "metaopt.db").exists()  # nothing written for a refused run
+
+
+NEUTRAL = Space([Variable("a", -1.0, 1.0), Variable("gain", -2.0, 2.0, neutral=0.5),
+                 Variable("b", 0.0, 3.0), Variable("rate", -1.0, 1.0, neutral=0.0)])  # fmt: skip
+
+
+def test_a_start_that_lacks_variables_with_a_neutral_value_takes_it() -> None:
+    assert fitted_start("p", ("b", "a"), [2.0, -0.5], NEUTRAL) == [-0.5, 0.5, 2.0, 0.0]
+    assert fitted_start("p", NEUTRAL.names, [0.1, 0.2, 0.3, 0.4], NEUTRAL) == [0.1, 0.2, 0.3, 0.4]
+    with pytest.raises(ConfigError) as lacking:
+        fitted_start("'p'", ("a", "gain"), [0.0, 0.0], NEUTRAL)
+    assert str(lacking.value) == (
+        "'p' has the variables a, gain; this run's problem has a, gain, b, rate (e.g. another "
+        "controller): it may lack only gain, rate, start from a candidate of the same variables"
+    )
+    with pytest.raises(ConfigError, match="'p' has the variables a, b, c; "):
+        fitted_start("'p'", ("a", "b", "c"), [0.0, 0.0, 0.0], NEUTRAL)
+
+
+def test_a_neutral_value_lies_within_its_bounds_and_is_stored_with_the_space() -> None:
+    with pytest.raises(ConfigError, match=r"'g' has neutral value 3\.0 outside its bounds"):
+        Space([Variable("g", -1.0, 1.0, neutral=3.0)])
+    assert Space.from_json(NEUTRAL.to_json()).variables == NEUTRAL.variables
+    assert "neutral" not in SPACE.to_json()[0]  # a space without one is stored as before
+
+
+def test_a_steered_gait_starts_a_balanced_run_where_it_walked(tmp_path) -> None:
+    """`run --start-from` a steered run's best into controller=balanced: the first candidate is
+    that best with both placement gains at their neutral 0, and it walks the very same episode
+    (the same fitness to the last bit), so nothing is lost in the change of controller."""
+    db = "runs.db"
+    short = ["--set", "duration=2", "--set", "lock=1"]
+    steered = metaopt_cli("run", "-o", "hs", "-p", "nao-walk", "--budget", "4", "--seed", "4",
+                          "--set", "hms=2", "--set", "controller=steered", *short, "--db", db,
+                          cwd=tmp_path)  # fmt: skip
+    assert steered.returncode == 0, steered.stderr
+    balanced = metaopt_cli("run", "-o", "hs", "-p", "nao-walk", "--budget", "3", "--seed", "5",
+                           "--set", "hms=2", "--set", "controller=balanced", *short,
+                           "--start-from", "1", "--db", db, cwd=tmp_path)  # fmt: skip
+    assert balanced.returncode == 0, balanced.stderr
+    with RunStore(tmp_path / db) as store:
+        best = store.best_evaluation(store.run(1))
+        first = next(store.evaluations(2))
+    np.testing.assert_array_equal(first.x, [*best.x, 0.0, 0.0])
+    assert first.fitness == best.fitness
+    back = metaopt_cli("run", "-o", "hs", "-p", "nao-walk", "--budget", "1", "--set", "hms=2",
+                       "--set", "controller=stride", *short, "--start-from", "2", "--db", db,
+                       cwd=tmp_path)  # fmt: skip
+    assert back.returncode == 2
+    assert "this run's problem has period," in back.stderr
+    assert "start from a candidate of the same variables" in back.stderr
 
 
 def test_run_start_from_several_runs_evaluates_each_best_first(tmp_path) -> None:

@@ -132,6 +132,9 @@
 # Design J is design H without STAGE1B_CELLS, both stages on the balanced controller (the
 # steered one with a stepping strategy; a later --set of a name wins): STAGE1_SET="worlds=standard
 # controller=balanced" and controller=balanced added to STAGE1B_SET, on fresh seeds 66-68.
+# Design K is design J with its stage 1 on the steered controller, as design H's (STAGE1_SET=
+# worlds=standard): stage 1b starts the balanced controller from the steered basins, its two
+# gains at their neutral 0 (a start may lack variables with a neutral value), on fresh seeds 69-71.
 # This is the thirteenth search, run after commit d228dc7 (nao-walk charges the flight
 # penalty past engine_cap). STAGE1B_START=all gives the twelfth's stage 1b, from all four
 # stage-1 bests; the twelfth (commit f1b7010) and the thirteenth's pilot ran before d228dc7.

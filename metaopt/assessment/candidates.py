@@ -19,6 +19,8 @@ from metaopt.assessment.recommendation import RECOMMENDED, recommended_point
 from metaopt.errors import ConfigError, StoreError
 from metaopt.params import resolve
 from metaopt.problem import ProblemInfo
+from metaopt.space import Space
+from metaopt.warm_start import fitted_start
 
 
 @dataclass(frozen=True)
@@ -123,12 +125,12 @@ def find_start(
     problem_params: Mapping[str, Any],
     problems: Mapping[str, ProblemInfo],
     db_path: str,
-) -> Candidate:
-    """``target`` (as find_candidate finds it) to start a run of ``problem`` with
-    ``problem_params`` from; ConfigError unless it is a candidate of the same variables."""
+) -> tuple[str, list[float]]:
+    """``target`` (as find_candidate finds it) as a start point of a run of ``problem`` with
+    ``problem_params``, in that run's variable order (metaopt.warm_start.fitted_start), with
+    the candidate's label (what `show` says the run started from)."""
     candidate, info = find_candidate(target, problems, db_path)
-    _check_start(target, candidate, info, problem, problem_params)
-    return candidate
+    return candidate.label, _fitted(repr(target), candidate, info, problem, problem_params)
 
 
 def stored_start(
@@ -136,10 +138,10 @@ def stored_start(
     problem: ProblemInfo,
     problem_params: Mapping[str, Any],
     problems: Mapping[str, ProblemInfo],
-) -> Candidate:
-    """The stored candidate ``name`` to start a run of ``problem`` with ``problem_params``
-    from, for an experiment file (which names no run: its runs' store is the comparison's);
-    ConfigError naming what is accepted otherwise."""
+) -> list[float]:
+    """The stored candidate ``name`` as a start point of a run of ``problem`` with
+    ``problem_params``, for an experiment file (which names no run: its runs' store is the
+    comparison's); ConfigError naming what is accepted otherwise."""
     named = stored_candidate_named(name, problems)
     if named is None:
         names = sorted(n for i in problems.values() if i.stored_candidates
@@ -150,38 +152,33 @@ def stored_start(
             "settings.start = [[...]]"
         )
     candidate, info, _ = named
-    _check_start(name, candidate, info, problem, problem_params)
-    return candidate
+    return _fitted(repr(name), candidate, info, problem, problem_params)
 
 
-def _check_start(
-    target: str,
+def _fitted(
+    label: str,
     candidate: Candidate,
     info: ProblemInfo,
     problem: ProblemInfo,
     problem_params: Mapping[str, Any],
-) -> None:
-    """ConfigError unless ``candidate`` (of ``info``) has the variables of ``problem`` built
-    with ``problem_params``."""
+) -> list[float]:
+    """``candidate`` (of ``info``) as a start point of ``problem`` built with
+    ``problem_params``; ConfigError unless it is a candidate of that problem whose variables
+    are the run's, or the run's less some with a neutral value."""
     if info.name != problem.name:
         raise ConfigError(
-            f"{target!r} is a candidate of {info.name!r}, not of {problem.name!r}: start from "
+            f"{label} is a candidate of {info.name!r}, not of {problem.name!r}: start from "
             f"a run or stored candidate of {problem.name!r}"
         )
-    names = _space_names(info, candidate.params)
-    wanted = _space_names(problem, resolve(problem.params, dict(problem_params), problem.name))
-    if names != wanted:
-        raise ConfigError(
-            f"{target!r} has the variables {', '.join(names)}; this run's problem has "
-            f"{', '.join(wanted)} (e.g. another controller): start from a candidate of the "
-            "same variables"
-        )
+    names = _space_of(info, candidate.params).names
+    space = _space_of(problem, resolve(problem.params, dict(problem_params), problem.name))
+    return fitted_start(label, names, candidate.x, space)
 
 
-def _space_names(info: ProblemInfo, params: Mapping[str, Any]) -> tuple[str, ...]:
-    """The variable names of ``info``'s problem built with ``params``."""
+def _space_of(info: ProblemInfo, params: Mapping[str, Any]) -> Space:
+    """The search space of ``info``'s problem built with ``params``."""
     problem = info.factory(**params)
     try:
-        return problem.space.names
+        return problem.space
     finally:
         problem.close()

@@ -297,10 +297,10 @@ def run_command(
             common_seeds=common_seeds,
             target=target,
             max_time=max_time,
-            start=[[float(value) for value in start.x] for start in starts] or None,
+            start=[point for _, point in starts] or None,
             start_spread=start_spread,
             start_points=start_points,
-            start_from=", ".join(start.label for start in starts) or None,
+            start_from=", ".join(label for label, _ in starts) or None,
         ),
     )
     spec.settings.check(spec.budget)

@@ -334,8 +334,8 @@ def _stored_starts(
     plugins: Registry,
 ) -> dict[str, Any]:
     """The run settings ``start`` (the points) and ``start_from`` (their names) for
-    ``settings.start_from``: a stored candidate's name or a list of them, each checked to have
-    the variables of every cell's problem."""
+    ``settings.start_from``: a stored candidate's name or a list of them, each checked to give
+    the same start point in every cell's problem."""
     names = settings["start_from"]
     if isinstance(names, str):
         names = [names]
@@ -352,7 +352,12 @@ def _stored_starts(
     points = []
     for name in names:
         found = [stored_start(name, problem_info, c, plugins.problems) for c in combinations]
-        points.append([float(value) for value in found[0].x])
+        if any(point != found[0] for point in found):
+            raise ConfigError(
+                f"settings.start_from {name!r} gives different start points in different cells "
+                "(their problems have different variables); give each problem its own experiment"
+            )
+        points.append(found[0])
     return {"start": points, "start_from": ", ".join(names)}
 
 

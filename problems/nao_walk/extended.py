@@ -105,8 +105,12 @@ LEFT = ("llj2", "llj3", "llj4", "llj5", "llj6")
 RIGHT = ("rlj2", "rlj3", "rlj4", "rlj5", "rlj6")
 
 
-def _space(bounds: tuple[tuple[str, float, float, str], ...]) -> Space:
-    return Space([Variable(name, lo, hi, meaning) for name, lo, hi, meaning in bounds])
+def _space(
+    bounds: tuple[tuple[str, float, float, str], ...], neutral: Mapping[str, float] | None = None
+) -> Space:
+    neutral = neutral or {}
+    return Space([Variable(name, lo, hi, meaning, neutral.get(name))
+                  for name, lo, hi, meaning in bounds])  # fmt: skip
 
 
 def extended_space() -> Space:
@@ -120,13 +124,16 @@ def stride_space() -> Space:
 
 
 def steered_space() -> Space:
-    """The steered controller's decision variables, named and bounded."""
-    return _space(_STEERED_BOUNDS)
+    """The steered controller's decision variables, named and bounded. Its steering gain is
+    neutral at 0, where it is the stride controller exactly."""
+    return _space(_STEERED_BOUNDS, {"steer": 0.0})
 
 
 def balanced_space() -> Space:
-    """The balanced controller's decision variables, named and bounded."""
-    return _space(_BALANCED_BOUNDS)
+    """The balanced controller's decision variables, named and bounded. Its two gains are
+    neutral at 0, where it is the steered controller exactly, so a steered gait can start a
+    balanced search (metaopt.warm_start.fitted_start)."""
+    return _space(_BALANCED_BOUNDS, {"steer": 0.0, "place_gain": 0.0, "place_rate": 0.0})
 
 
 @functools.cache
