@@ -42,18 +42,19 @@ def fitted_start(
 ) -> list[float]:
     """``point``, whose variables are ``names``, as a start point of ``space`` in its order:
     variables the point lacks take their neutral value (Variable.neutral), so a candidate of a
-    smaller controller starts a larger one at the very point it was found. ConfigError, naming
-    ``label``, when the point has a variable the space lacks or lacks one with no neutral value."""
+    smaller variant of a problem starts a larger one at the very point it was found.
+    ConfigError, naming ``label``, when the point has a variable the space lacks or lacks one
+    with no neutral value."""
     given = dict(zip(names, (float(value) for value in point)))
     neutral = {v.name: v.neutral for v in space.variables if v.neutral is not None}
     if set(given) - set(space.names) or set(space.names) - set(given) - set(neutral):
-        lacking = f" it may lack only {', '.join(neutral)}," if neutral else ""
+        lacking = f" (it may lack only {', '.join(neutral)}: they have a neutral value)"
         raise ConfigError(
             f"{label} has the variables {', '.join(names)}; this run's problem has "
-            f"{', '.join(space.names)} (e.g. another controller):{lacking} start from a "
-            "candidate of the same variables"
+            f"{', '.join(space.names)} (e.g. another controller): start from a candidate of "
+            f"the same variables{lacking if neutral else ''}"
         )
-    return [given.get(name, neutral.get(name)) for name in space.names]
+    return [given[name] if name in given else neutral[name] for name in space.names]
 
 
 def start_points(

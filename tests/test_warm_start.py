@@ -198,7 +198,8 @@ def test_a_start_that_lacks_variables_with_a_neutral_value_takes_it() -> None:
         fitted_start("'p'", ("a", "gain"), [0.0, 0.0], NEUTRAL)
     assert str(lacking.value) == (
         "'p' has the variables a, gain; this run's problem has a, gain, b, rate (e.g. another "
-        "controller): it may lack only gain, rate, start from a candidate of the same variables"
+        "controller): start from a candidate of the same variables (it may lack only gain, "
+        "rate: they have a neutral value)"
     )
     with pytest.raises(ConfigError, match="'p' has the variables a, b, c; "):
         fitted_start("'p'", ("a", "b", "c"), [0.0, 0.0, 0.0], NEUTRAL)
