@@ -11,6 +11,7 @@ import pytest
 
 from metaopt import ConfigError
 from metaopt.assessment.robustness import summarize
+from metaopt.warm_start import fitted_start
 from metaopt_problems.nao_walk.episode import Sensors
 from metaopt_problems.nao_walk.extended import (
     BALANCED_PARAM_NAMES,
@@ -243,6 +244,21 @@ def test_balanced_without_stepping_gains_is_the_steered_controller():
     x = params(BalancedCpg, feedback=1.0, steer=1.0, place_gain=0.0, place_rate=0.0)
     balanced, steered = BalancedCpg(x, LIMITS), SteeredCpg(x[:-2], LIMITS)
     np.testing.assert_array_equal(drive(balanced, 300, sensors), drive(steered, 300, sensors))
+
+
+@pytest.mark.parametrize(("larger", "smaller"), [(SteeredCpg, StrideCpg),
+                                                 (BalancedCpg, SteeredCpg),
+                                                 (BalancedCpg, StrideCpg)])  # fmt: skip
+def test_a_smaller_controllers_gait_at_the_neutral_values_drives_the_same_targets(larger, smaller):
+    """The neutral values a controller's space declares are where it is the smaller
+    controller exactly: a smaller one's gait, fitted into the larger space as `run --start-from`
+    fits it, drives the very same targets (with the torso off level and turned)."""
+    sensors = Sensors(left_hip=0.1, right_hip=-0.05, roll=0.1, pitch=-0.1, yaw=0.2)
+    x = params(smaller, feedback=1.0)
+    fitted = fitted_start("gait", SPACES[smaller]().names, x, SPACES[larger]())
+    assert len(fitted) > len(x)
+    np.testing.assert_array_equal(drive(larger(fitted, LIMITS), 300, sensors),
+                                  drive(smaller(x, LIMITS), 300, sensors))  # fmt: skip
 
 
 def test_a_torso_pitched_forward_moves_both_hips_by_the_gain_and_the_rate():
