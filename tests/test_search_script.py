@@ -130,14 +130,18 @@ def test_the_flat_check_also_reads_the_share_of_the_last_candidates_that_fell(tm
     if metaopt is None:
         pytest.skip("the metaopt command is not installed")
 
+    def show(db: Path) -> dict:
+        """`metaopt show 1 --recent 100` of the store at db, as flat() reads it."""
+        return json.loads(subprocess.run(
+            [metaopt, "show", "1", "--recent", "100", "--db", str(db), "--format", "json"],
+            check=True, capture_output=True, text=True, timeout=60).stdout)  # fmt: skip
+
     def stored(problem: str, *settings: str) -> tuple[Path, float, float | None]:
         db = tmp_path / f"{problem}.db"
         run = ["run", "-o", "random", "-p", problem, "--budget", "6", "--seed", "2",
                *settings, "--db", str(db)]  # fmt: skip
         subprocess.run([metaopt, *run], check=True, capture_output=True, timeout=300)
-        shown = json.loads(subprocess.run(
-            [metaopt, "show", "1", "--recent", "100", "--db", str(db), "--format", "json"],
-            check=True, capture_output=True, text=True, timeout=60).stdout)  # fmt: skip
+        shown = show(db)
         fell = shown["recent"]["metrics"].get("fell", {}).get("share")
         return db, shown["best"]["fitness"], fell
 
@@ -162,6 +166,8 @@ def test_the_flat_check_also_reads_the_share_of_the_last_candidates_that_fell(tm
     subprocess.run([metaopt, "run", "-o", "random", "-p", "sphere", "--budget", "5",
                     "--max-time", "0.000001", "--db", str(empty)],
                    capture_output=True, timeout=120)  # fmt: skip
+    shown = show(empty)
+    assert shown["best"] is None and shown["recent"] is None  # no evaluation, as meant
     assert verdict(empty, 1.0, "") == verdict(empty, 1.0, 0.9) == "yes"
 
 

@@ -98,6 +98,12 @@ _BALANCED_BOUNDS: tuple[tuple[str, float, float, str], ...] = (
     ("place_rate", -0.3, 0.3, "torso pitch rate into both hips' pitch, rad per rad/s"),
 )
 BALANCED_PARAM_NAMES: tuple[str, ...] = tuple(name for name, *_ in _BALANCED_BOUNDS)
+
+#: The values at which a controller's added variables make it the smaller one exactly (the
+#: steered one without steering is the stride one; the balanced one without its two gains is
+#: the steered one), so a smaller controller's gait can start a larger one's search.
+_STEERED_NEUTRAL: dict[str, float] = {"steer": 0.0}
+_BALANCED_NEUTRAL: dict[str, float] = {**_STEERED_NEUTRAL, "place_gain": 0.0, "place_rate": 0.0}
 #: The steered controller's largest stride asymmetry: a leg's hip swing x (1 +- this).
 STEER_LIMIT = 0.5
 
@@ -126,14 +132,14 @@ def stride_space() -> Space:
 def steered_space() -> Space:
     """The steered controller's decision variables, named and bounded. Its steering gain is
     neutral at 0, where it is the stride controller exactly."""
-    return _space(_STEERED_BOUNDS, {"steer": 0.0})
+    return _space(_STEERED_BOUNDS, _STEERED_NEUTRAL)
 
 
 def balanced_space() -> Space:
     """The balanced controller's decision variables, named and bounded. Its two gains are
     neutral at 0, where it is the steered controller exactly, so a steered gait can start a
     balanced search (metaopt.warm_start.fitted_start)."""
-    return _space(_BALANCED_BOUNDS, {"steer": 0.0, "place_gain": 0.0, "place_rate": 0.0})
+    return _space(_BALANCED_BOUNDS, _BALANCED_NEUTRAL)
 
 
 @functools.cache
