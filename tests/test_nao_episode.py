@@ -19,6 +19,7 @@ from metaopt.physics import PhysicsSettings
 from metaopt.plugins import registry
 from metaopt_problems.nao_walk.episode import (
     FALL_PENALTY,
+    FLIGHT_ALLOWED,
     EpisodeResult,
     EpisodeRunner,
     EpisodeSettings,
@@ -146,6 +147,27 @@ def test_progress_fitness_scores_a_fall_by_the_walk_it_cut_short() -> None:
     # above the share a search allows (flight_allowed), not the goal's 5 %
     stricter = fitness(flying, "progress", 15.0, flight_penalty=20, flight_allowed=0.02)
     assert stricter == pytest.approx(1.0 - 20 * 0.13)
+
+
+@pytest.mark.parametrize("kind", ["robust", "progress"])
+def test_falling_before_the_flight_is_measured_does_not_escape_the_flight_penalty(
+    kind: str,
+) -> None:
+    """Stage 1b of design L's seed 73 learned to fall within 1.5 s of walking (fitness about -1)
+    rather than walk on with flight (-5 to -23 m at flight_penalty 50): an early fall, whose
+    flight is never measured, was charged no penalty. It is now charged flight throughout."""
+    early = EpisodeResult(0.2, 0.0, 1.4, True, 4.4, 0.3, 0.4)  # fell before SETTLE_S: flight NaN
+    assert math.isnan(early.flight)
+    for flight in (0.0, 0.3, 1.0):  # a later fall, at the same progress, with any flight share
+        later = EpisodeResult(0.2, 0.0, 6.0, True, 9.0, 0.3, 0.4, flight=flight)
+        assert fitness(later, kind, 15.0, flight_penalty=50) >= fitness(
+            early, kind, 15.0, flight_penalty=50
+        )
+    charged = fitness(early, kind, 15.0) - 50 * (1.0 - FLIGHT_ALLOWED)
+    assert fitness(early, kind, 15.0, flight_penalty=50) == pytest.approx(charged)
+    # only a fall is charged: a walk too short to measure, upright, pays nothing, as before
+    short = EpisodeResult(0.2, 0.0, 1.4, False, 4.4, 0.3, 0.4)
+    assert fitness(short, kind, 4.4, flight_penalty=50) == pytest.approx(0.2)
 
 
 def test_problem_rejects_unknown_backend_and_bad_timing() -> None:

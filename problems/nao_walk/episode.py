@@ -223,8 +223,10 @@ def fitness(
     walking on another scores above standing (a first search over several engines from
     random gaits), and a lunge forward does not pay.
     The score counts at most cap (nao-walk's engine_cap: progress past it stops paying). Each
-    kind then loses flight_penalty metres per unit of flight share above flight_allowed, where
-    flight was measured: a run scores below a walk of the same progress, past the cap too.
+    kind then loses flight_penalty metres per unit of flight share above flight_allowed: a run
+    scores below a walk of the same progress, past the cap too. A fall before the flight could
+    be measured (within SETTLE_S of walking) is charged as flight throughout, so that falling at
+    once never escapes the penalty that a longer walk pays (a search would learn to fall).
     """
     progress = result.distance - abs(result.drift)
     remaining = duration - result.fall_time
@@ -237,8 +239,9 @@ def fitness(
     else:
         score = progress - FALL_PENALTY - FALL_PENALTY_RATE * remaining
     score = min(score, cap)
-    if flight_penalty and not math.isnan(result.flight):
-        score -= flight_penalty * max(0.0, result.flight - flight_allowed)
+    flight = 1.0 if result.fell and math.isnan(result.flight) else result.flight
+    if flight_penalty and not math.isnan(flight):
+        score -= flight_penalty * max(0.0, flight - flight_allowed)
     return score
 
 
