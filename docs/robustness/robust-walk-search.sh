@@ -136,7 +136,9 @@
 # worlds=standard): stage 1b starts the balanced controller from the steered basins, its two
 # gains at their neutral 0 (a start may lack variables with a neutral value), on fresh seeds 69-71.
 # Pilot L is design H (STAGE1B_CELLS above) with controller=balanced added to STAGE1B_SET, on
-# fresh seed 72; design L is the same on fresh seeds 73-75.
+# fresh seed 72; design L is the same on fresh seeds 73-75. Every design up to L ran before
+# commit 2144e1a, where nao-walk stopped letting a fall in the first 2 s of walking escape the
+# flight penalty (the cause of the stage 1bs that FLAT_BEST and FLAT_FELL restart).
 # This is the thirteenth search, run after commit d228dc7 (nao-walk charges the flight
 # penalty past engine_cap). STAGE1B_START=all gives the twelfth's stage 1b, from all four
 # stage-1 bests; the twelfth (commit f1b7010) and the thirteenth's pilot ran before d228dc7.
