@@ -154,7 +154,7 @@ def test_falling_before_the_flight_is_measured_does_not_escape_the_flight_penalt
     kind: str,
 ) -> None:
     """Stage 1b of design L's seed 73 learned to fall within 1.5 s of walking (fitness about -1)
-    rather than walk on with flight (-5 to -23 m at flight_penalty 50): an early fall, whose
+    rather than walk on with flight (a median of -10 m at flight_penalty 50): an early fall, whose
     flight is never measured, was charged no penalty. It is now charged flight throughout."""
     early = EpisodeResult(0.2, 0.0, 1.4, True, 4.4, 0.3, 0.4)  # fell before SETTLE_S: flight NaN
     assert math.isnan(early.flight)

@@ -150,8 +150,9 @@ PARAMS = (
     Param("measure_flight", bool, False, "also measure the metric flight: the share of the "
           "walking phase after 2 s with neither foot on the ground (a contact query per step)"),
     Param("flight_penalty", float, 0.0, "metres of fitness lost per unit of flight share "
-          "above flight_allowed (neither foot on the ground: a run, not a walk); > 0 measures "
-          "flight; 0 = none", low=0.0, high=1000.0),
+          "above flight_allowed (neither foot on the ground: a run, not a walk); a fall before "
+          "the flight is measured counts as flight throughout; > 0 measures flight; 0 = none",
+          low=0.0, high=1000.0),
     Param("flight_allowed", float, FLIGHT_ALLOWED, "flight share (neither foot on the ground) "
           "charged no flight_penalty: 0.05 is the robust-walk goal's bound; a search may ask "
           "for less, to keep a margin for the worlds its gait was not tuned in",
