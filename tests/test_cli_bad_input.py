@@ -83,8 +83,8 @@ _RUN_ID = st.one_of(
 )
 RUN_BASE = ["run", "-o", "hs", "-p", "sphere", "--budget", "5", "--set", "dim=2"]
 COMPARE_BASE = ["compare", "-o", "hs", "-p", "sphere", "--seeds", "1", "--budget", "5"]
-COMMANDS = ["list", "run", "resume", "runs", "show", "export", "replay", "report", "compare",
-            "robustness", "robustness-summary", "robustness-rank", "new"]  # fmt: skip
+COMMANDS = ["list", "run", "resume", "runs", "show", "history", "export", "replay", "report",
+            "compare", "robustness", "robustness-summary", "robustness-rank", "new"]  # fmt: skip
 #: Every installed name, so that a generated "unknown" name never names a real plugin.
 OPTIMIZERS, PROBLEMS = sorted(registry().optimizers), sorted(registry().problems)
 PLUGINS = sorted(name for table in registry().tables().values() for name in table)
@@ -192,13 +192,18 @@ _CASES = {
     "resume --workers": _option(["resume", "1"], "--workers", _int_outside(1, 1024)),
     "resume --executor": _option(["resume", "1"], "--executor", _unknown_name(["serial"])),
     "resume --db": _db(["resume", "1"]),
-    # runs, show, export
+    # runs, show, history, export
     "runs --format": _option(["runs"], "--format", _not_in(["table", "csv", "json"])),
     "runs --db": _db(["runs"]),
     "show RUN": _argument(["show"], _RUN_ID),
     "show --format": _option(["show", "1"], "--format", _not_in(["table", "csv", "json"])),
     "show --recent": _option(["show", "1"], "--recent", _int_outside(1, MAX_INT64)),
     "show --db": _db(["show", "1"]),
+    "history RUN": _argument(["history"], _RUN_ID),
+    "history --format": _option(["history", "1"], "--format", _not_in(["table", "csv", "json"])),
+    "history --window": _option(["history", "1"], "--window", _int_outside(1, MAX_INT64)),
+    "history --metric": _option(["history", "1"], "--metric", _text()),  # sphere reports none
+    "history --db": _db(["history", "1"]),
     "export RUN": _argument(["export"], _RUN_ID),
     "export --format": _option(["export", "1"], "--format", _not_in(["csv", "json"])),
     "export --output": _option(["export", "1"], "--output", st.sampled_from(BAD_FILE_PATHS)),

@@ -1,5 +1,5 @@
-"""The ``metaopt`` command line: list, run, resume, runs, show, export, replay, compare, report,
-new."""
+"""The ``metaopt`` command line: list, run, resume, runs, show, history, export, replay, compare,
+report, new."""
 
 from __future__ import annotations
 
@@ -35,6 +35,7 @@ from metaopt.cli.robustness import (
 from metaopt.errors import MetaoptError, SettingWarning
 from metaopt.plugins import registry
 from metaopt.reporting import display
+from metaopt.reporting.history import run_history
 from metaopt.reporting.recent import DEFAULT_WINDOW, recent_figures
 from metaopt.run_loop import (
     AGGREGATES,
@@ -412,6 +413,42 @@ def show_command(run_id: str, recent: int, fmt: str, db_path: str) -> None:
         console.print(display.run_detail(record, counts, best, figures))
     else:
         print_records(display.run_document(record, counts, best, figures), fmt)
+
+
+@main.command("history")
+@click.argument("run_id")
+@click.option(
+    "--window",
+    type=click.IntRange(min=1, max=MAX_INT64),
+    default=DEFAULT_WINDOW,
+    show_default=True,
+    metavar="N",
+    help="Evaluations per row: the run's evaluations in consecutive windows of N.",
+)
+@click.option(
+    "--metric",
+    "metrics",
+    multiple=True,
+    metavar="NAME",
+    help="A metric to show per window, its median (a 0/1 metric's share); repeat for more "
+    "[the run's 0/1 metrics, e.g. nao-walk's falls].",
+)
+@format_option
+@db_option
+def history_command(
+    run_id: str, window: int, metrics: tuple[str, ...], fmt: str, db_path: str
+) -> None:
+    """Show a run's course, window by window: median fitness and quartiles, the best so far,
+    and metrics' medians or shares; whether a noisy search still climbed when it stopped."""
+    require_store(db_path)
+    with RunStore(db_path) as store:
+        record = store.run(run_id)
+        maximize = record.sense == "maximize"
+        history = run_history(store.evaluations(record.id), window, maximize, metrics or None)
+    if fmt == "table":
+        console.print(display.history_table(record, history))
+    else:
+        print_records(display.history_records(history), fmt)
 
 
 @main.command("export")

@@ -25,6 +25,7 @@ from rich.table import Table
 from metaopt.assessment.replay import Replay, ReplaySource, SeedReplay
 from metaopt.assessment.search_medians import Medians, SearchTable, missed_goals
 from metaopt.params import Param
+from metaopt.reporting.history import RunHistory
 from metaopt.reporting.recent import RecentFigures
 from metaopt.run_loop import RunResult
 from metaopt.storage.run_store import CandidateRecord, RunRecord
@@ -362,6 +363,67 @@ def _recent_rows(table: Table, recent: RecentFigures) -> None:
             table.add_row(f"  {metric.name}", f"{metric.value:.0%} at 1 (share{among})")
         else:
             table.add_row(f"  {metric.name}", f"{format_number(metric.value)} (median{among})")
+
+
+def history_table(run: RunRecord, history: RunHistory) -> Table:
+    """`metaopt history RUN`: a row per window of evaluations: failures, fitness median and
+    quartiles, the best so far, and each shown metric's median or share (a share in %)."""
+    better = "higher" if run.sense == "maximize" else "lower"
+    table = Table(
+        title=f"run {run.id}: {history.window} evaluations a row ({better} fitness is better)",
+        title_justify="left",
+        box=box.SIMPLE_HEAD,
+        pad_edge=False,
+    )
+    for header in ("evaluations", "failed", "median fitness", "quartiles", "best so far"):
+        table.add_column(header, justify="right")
+    for name in history.metrics:
+        kind = "share" if name in history.shares else "median"
+        table.add_column(f"{name} ({kind})", justify="right", overflow="fold")
+    for window in history.windows:
+        quartiles = window.fitness_quartiles
+        cells = [
+            f"{window.first}-{window.last}",
+            str(window.evaluations - window.succeeded),
+            "-" if quartiles is None else format_number(quartiles[1]),
+            "-"
+            if quartiles is None
+            else f"{format_number(quartiles[0])} to {format_number(quartiles[2])}",
+            format_number(window.best_so_far),
+        ]
+        for name in history.metrics:
+            value = window.metrics[name]
+            if value is None:
+                cells.append("-")
+            elif name in history.shares:
+                cells.append(f"{value:.0%}")
+            else:
+                cells.append(format_number(value))
+        table.add_row(*cells)
+    return table
+
+
+def history_records(history: RunHistory) -> list[dict[str, Any]]:
+    """A run's history as data, a record per window; a metric's key says whether its value is
+    the window's median or its share at 1 (``fell_share``, ``speed_median``)."""
+    records = []
+    for window in history.windows:
+        lower, median, upper = window.fitness_quartiles or (None, None, None)
+        record: dict[str, Any] = {
+            "first": window.first,
+            "last": window.last,
+            "evaluations": window.evaluations,
+            "failed": window.evaluations - window.succeeded,
+            "fitness_lower_quartile": lower,
+            "fitness_median": median,
+            "fitness_upper_quartile": upper,
+            "best_so_far": window.best_so_far,
+        }
+        for name in history.metrics:
+            kind = "share" if name in history.shares else "median"
+            record[f"{name}_{kind}"] = window.metrics[name]
+        records.append(record)
+    return records
 
 
 def reflow(text: str) -> str:

@@ -6,7 +6,7 @@ and how many of its candidates fail the task (e.g. nao-walk's share of falls).""
 from __future__ import annotations
 
 import statistics
-from collections.abc import Iterable
+from collections.abc import Iterable, Sequence
 from dataclasses import dataclass
 
 import numpy as np
@@ -48,21 +48,37 @@ def recent_figures(evaluations: Iterable[EvaluationRecord]) -> RecentFigures | N
     if not window:
         return None
     fitnesses = [e.fitness for e in window if e.fitness is not None]
-    quartiles = None
-    if fitnesses:  # linear interpolation, as every other table of metaopt's
-        lower, median, upper = np.percentile(fitnesses, [25, 50, 75])
-        quartiles = (float(lower), float(median), float(upper))
     values: dict[str, list[float]] = {}
     for evaluation in window:
         for name, value in evaluation.metrics.items():
             values.setdefault(name, []).append(float(value))
     metrics = tuple(_metric(name, found) for name, found in values.items())
     return RecentFigures(
-        window[0].index, window[-1].index, len(window), len(fitnesses), quartiles, metrics
+        window[0].index,
+        window[-1].index,
+        len(window),
+        len(fitnesses),
+        fitness_quartiles(fitnesses),
+        metrics,
     )
 
 
+def fitness_quartiles(fitnesses: Sequence[float]) -> tuple[float, float, float] | None:
+    """Lower quartile, median and upper quartile of these fitnesses (linear interpolation, as
+    every other table of metaopt's); None when there are none."""
+    if not fitnesses:
+        return None
+    lower, median, upper = np.percentile(fitnesses, [25, 50, 75])
+    return float(lower), float(median), float(upper)
+
+
+def is_flag(values: Iterable[float]) -> bool:
+    """Whether a metric is 0 or 1 in every evaluation that reports it (a flag such as
+    nao-walk's ``fell``): such a metric is shown as the share at 1, not as a median."""
+    return all(value in (0.0, 1.0) for value in values)
+
+
 def _metric(name: str, values: list[float]) -> MetricFigure:
-    if all(value in (0.0, 1.0) for value in values):
+    if is_flag(values):
         return MetricFigure(name, sum(values) / len(values), True, len(values))
     return MetricFigure(name, statistics.median(values), False, len(values))

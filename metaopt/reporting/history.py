@@ -1,0 +1,100 @@
+"""A run's course, window by window: for each window of consecutive evaluations its median
+fitness and quartiles, the best fitness so far, and chosen metrics' medians (a 0/1 metric's
+share, e.g. of falls). The best-so-far curve of a noisy run rises on lucky scores alone; the
+windows' medians show whether the search as a whole still climbed when it stopped, and what
+it traded on the way (`metaopt history`)."""
+
+from __future__ import annotations
+
+import statistics
+from collections.abc import Iterable, Sequence
+from dataclasses import dataclass
+
+from metaopt.errors import ConfigError
+from metaopt.reporting.recent import fitness_quartiles, is_flag
+from metaopt.storage.run_store import EvaluationRecord
+
+
+@dataclass(frozen=True)
+class HistoryWindow:
+    """One window of a run's evaluations: index range, how many succeeded, their fitness
+    quartiles (None: none succeeded), the best fitness of every evaluation up to the window's
+    last (None: none yet), and each shown metric's median or share (None: none reported it)."""
+
+    first: int
+    last: int
+    evaluations: int
+    succeeded: int
+    fitness_quartiles: tuple[float, float, float] | None
+    best_so_far: float | None
+    metrics: dict[str, float | None]
+
+
+@dataclass(frozen=True)
+class RunHistory:
+    """A run's windows, the metrics they show, and which of those are shares (0/1 metrics)."""
+
+    window: int
+    metrics: tuple[str, ...]
+    shares: frozenset[str]
+    windows: tuple[HistoryWindow, ...]
+
+
+def run_history(
+    evaluations: Iterable[EvaluationRecord],
+    window: int,
+    maximize: bool,
+    metrics: Sequence[str] | None = None,
+) -> RunHistory:
+    """The run's evaluations (in index order) in consecutive windows of ``window`` (the last may
+    be shorter). ``metrics`` names the metrics to show; None shows the run's 0/1 metrics (a
+    metric is a share when it is 0 or 1 in every evaluation of the run that reports it).
+    ConfigError for a name the run's evaluations never report, with the names they do."""
+    if window < 1:
+        raise ConfigError(f"a history window must hold at least 1 evaluation; got {window}")
+    records = list(evaluations)
+    reported: dict[str, list[float]] = {}
+    for record in records:
+        for name, value in record.metrics.items():
+            reported.setdefault(name, []).append(float(value))
+    shares = frozenset(name for name, values in reported.items() if is_flag(values))
+    if metrics is None:
+        shown = tuple(name for name in reported if name in shares)
+    else:
+        unknown = [name for name in metrics if name not in reported]
+        if unknown:
+            known = ", ".join(sorted(reported)) or "none"
+            raise ConfigError(
+                f"no metric {unknown[0]!r} in this run's evaluations; they report: {known}"
+            )
+        shown = tuple(dict.fromkeys(metrics))
+    windows = []
+    best: float | None = None
+    for start in range(0, len(records), window):
+        chunk = records[start : start + window]
+        fitnesses = [r.fitness for r in chunk if r.fitness is not None]
+        if fitnesses:
+            chunk_best = max(fitnesses) if maximize else min(fitnesses)
+            better = best is None or (chunk_best > best if maximize else chunk_best < best)
+            best = chunk_best if better else best
+        figures = {}
+        for name in shown:
+            values = [float(r.metrics[name]) for r in chunk if name in r.metrics]
+            if not values:
+                figures[name] = None
+            elif name in shares:
+                figures[name] = sum(values) / len(values)
+            else:
+                figures[name] = statistics.median(values)
+        windows.append(
+            HistoryWindow(
+                first=chunk[0].index,
+                last=chunk[-1].index,
+                evaluations=len(chunk),
+                succeeded=len(fitnesses),
+                fitness_quartiles=fitness_quartiles(fitnesses),
+                best_so_far=best,
+                metrics=figures,
+            )
+        )
+    return RunHistory(window, shown, shares & frozenset(shown), tuple(windows))

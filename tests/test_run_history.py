@@ -1,0 +1,88 @@
+"""A run's course window by window (metaopt history): windows, best so far in either sense,
+failures, shares and medians, and the command against the run's own exported evaluations."""
+
+from __future__ import annotations
+
+import csv
+import io
+
+import numpy as np
+import pytest
+
+from metaopt.errors import ConfigError
+from metaopt.reporting.history import run_history
+from metaopt.storage.run_store import EvaluationRecord
+from tests.conftest import metaopt_cli
+
+
+def _evaluation(index: int, fitness: float | None, **metrics: float) -> EvaluationRecord:
+    failed = fitness is None
+    return EvaluationRecord(
+        index, index, np.zeros(2), fitness, metrics, "failed" if failed else "ok",
+        "boom" if failed else None, index, 0.1, 0.0,
+    )  # fmt: skip
+
+
+RUN = [
+    _evaluation(0, 5.0, fell=1.0, speed=0.1),
+    _evaluation(1, None),
+    _evaluation(2, 1.0, fell=0.0, speed=0.3),
+    _evaluation(3, 7.0, fell=1.0, speed=0.2),
+    _evaluation(4, 3.0, fell=0.0),
+    _evaluation(5, 2.0, fell=0.0, speed=0.5),
+    _evaluation(6, 9.0, fell=1.0),
+]
+
+
+def test_windows_their_quartiles_and_the_best_so_far_in_either_sense():
+    up = run_history(RUN, window=3, maximize=True, metrics=None)
+    assert [(w.first, w.last, w.evaluations, w.succeeded) for w in up.windows] == [
+        (0, 2, 3, 2), (3, 5, 3, 3), (6, 6, 1, 1),
+    ]  # fmt: skip
+    assert up.windows[0].fitness_quartiles == (2.0, 3.0, 4.0)  # the failed one is left out
+    assert [w.best_so_far for w in up.windows] == [5.0, 7.0, 9.0]
+    down = run_history(RUN, window=3, maximize=False, metrics=None)
+    assert [w.best_so_far for w in down.windows] == [1.0, 1.0, 1.0]
+    failed_first = run_history([_evaluation(0, None), *RUN[2:4]], 1, True, None)
+    assert [w.best_so_far for w in failed_first.windows] == [None, 1.0, 7.0]
+    assert failed_first.windows[0].fitness_quartiles is None
+
+
+def test_shares_for_0_1_metrics_medians_for_the_rest_and_none_where_unreported():
+    default = run_history(RUN, window=3, maximize=True, metrics=None)
+    assert default.metrics == ("fell",) and default.shares == {"fell"}  # flags by default
+    assert [w.metrics["fell"] for w in default.windows] == [0.5, 1 / 3, 1.0]
+    chosen = run_history(RUN, window=3, maximize=True, metrics=["speed", "fell", "speed"])
+    assert chosen.metrics == ("speed", "fell") and chosen.shares == {"fell"}
+    assert [w.metrics["speed"] for w in chosen.windows] == [0.2, 0.35, None]
+
+
+def test_an_unknown_metric_is_refused_with_the_names_the_run_reports():
+    with pytest.raises(ConfigError, match=r"no metric 'height'.*fell, speed"):
+        run_history(RUN, window=3, maximize=True, metrics=["height"])
+
+
+def test_the_command_agrees_with_the_exported_evaluations(tmp_path):
+    env = {"METAOPT_LOAD_PLUGINS": "random_search,functions"}
+    done = metaopt_cli(
+        "run", "-o", "random", "-p", "sphere", "--budget", "50", "--seed", "3", "--set",
+        "dim=3", cwd=tmp_path, env=env,
+    )  # fmt: skip
+    assert done.returncode == 0, done.stderr
+    exported = metaopt_cli("export", "1", "--format", "csv", cwd=tmp_path, env=env)
+    fitness = [float(row["fitness"]) for row in csv.DictReader(io.StringIO(exported.stdout))]
+    shown = metaopt_cli("history", "1", "--window", "20", "--format", "csv", cwd=tmp_path, env=env)
+    rows = list(csv.DictReader(io.StringIO(shown.stdout)))
+    ranges = [(row["first"], row["last"]) for row in rows]
+    assert ranges == [("0", "19"), ("20", "39"), ("40", "49")]
+    for row, start in zip(rows, (0, 20, 40), strict=True):
+        window = fitness[start : start + 20]
+        assert float(row["fitness_median"]) == pytest.approx(np.median(window), rel=1e-12)
+        assert float(row["best_so_far"]) == min(fitness[: start + 20])  # sphere is minimized
+    table = metaopt_cli("history", "1", "--window", "20", cwd=tmp_path, env=env)
+    assert "lower fitness is better" in table.stdout and "40-49" in table.stdout
+    refused = metaopt_cli("history", "1", "--metric", "fell", cwd=tmp_path, env=env)
+    assert refused.returncode == 2
+    assert refused.stderr.strip().splitlines() == [
+        "Error: no metric 'fell' in this run's evaluations; they report: none"
+    ]
