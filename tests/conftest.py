@@ -1,4 +1,5 @@
-"""Shared fixtures: an isolated install of the outside example plugin, and CLI helpers."""
+"""Shared fixtures: an isolated install of the outside example plugin, CLI helpers, and stored
+evaluations for the reporting tests."""
 
 from __future__ import annotations
 
@@ -9,7 +10,10 @@ import sys
 from pathlib import Path
 from types import ModuleType
 
+import numpy as np
 import pytest
+
+from metaopt.storage.run_store import EvaluationRecord
 
 FIXTURES = Path(__file__).parent / "fixtures"
 ROOT = Path(__file__).parents[1]
@@ -64,6 +68,16 @@ def metaopt_cli(
         text=True,
         timeout=600,
     )
+
+
+def evaluation_record(index: int, fitness: float | None, **metrics: float) -> EvaluationRecord:
+    """A stored evaluation as the run store reads it back: failed (status and error) when
+    ``fitness`` is None, with these metrics."""
+    failed = fitness is None
+    return EvaluationRecord(
+        index, index, np.zeros(2), fitness, metrics, "failed" if failed else "ok",
+        "boom" if failed else None, index, 0.1, 0.0,
+    )  # fmt: skip
 
 
 def one_error_line(done: subprocess.CompletedProcess, *needles: str) -> str:

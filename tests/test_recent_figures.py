@@ -3,26 +3,16 @@ some evaluations lack, 0/1 metrics."""
 
 from __future__ import annotations
 
-import numpy as np
-
 from metaopt.reporting.recent import recent_figures
-from metaopt.storage.run_store import EvaluationRecord
-
-
-def _evaluation(index: int, fitness: float | None, **metrics: float) -> EvaluationRecord:
-    failed = fitness is None
-    return EvaluationRecord(
-        index, index, np.zeros(2), fitness, metrics, "failed" if failed else "ok",
-        "boom" if failed else None, index, 0.1, 0.0,
-    )  # fmt: skip
+from tests.conftest import evaluation_record
 
 
 def test_failures_and_partial_metrics_are_counted_not_mixed_in():
     window = [
-        _evaluation(5, 1.0, fell=0.0, flight=0.02),
-        _evaluation(6, None),
-        _evaluation(7, 3.0, fell=1.0),
-        _evaluation(8, 2.0, fell=1.0, flight=0.04),
+        evaluation_record(5, 1.0, fell=0.0, flight=0.02),
+        evaluation_record(6, None),
+        evaluation_record(7, 3.0, fell=1.0),
+        evaluation_record(8, 2.0, fell=1.0, flight=0.04),
     ]
     figures = recent_figures(window)
     assert (figures.first, figures.last, figures.evaluations, figures.succeeded) == (5, 8, 4, 3)
@@ -34,6 +24,6 @@ def test_failures_and_partial_metrics_are_counted_not_mixed_in():
 
 
 def test_a_window_where_every_evaluation_failed_or_none_at_all():
-    figures = recent_figures([_evaluation(0, None), _evaluation(1, None)])
+    figures = recent_figures([evaluation_record(0, None), evaluation_record(1, None)])
     assert figures.succeeded == 0 and figures.fitness_quartiles is None
     assert recent_figures([]) is None

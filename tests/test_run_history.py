@@ -11,26 +11,16 @@ import pytest
 
 from metaopt.errors import ConfigError
 from metaopt.reporting.history import run_history
-from metaopt.storage.run_store import EvaluationRecord
-from tests.conftest import metaopt_cli
-
-
-def _evaluation(index: int, fitness: float | None, **metrics: float) -> EvaluationRecord:
-    failed = fitness is None
-    return EvaluationRecord(
-        index, index, np.zeros(2), fitness, metrics, "failed" if failed else "ok",
-        "boom" if failed else None, index, 0.1, 0.0,
-    )  # fmt: skip
-
+from tests.conftest import evaluation_record, metaopt_cli
 
 RUN = [
-    _evaluation(0, 5.0, fell=1.0, speed=0.1),
-    _evaluation(1, None),
-    _evaluation(2, 1.0, fell=0.0, speed=0.3),
-    _evaluation(3, 7.0, fell=1.0, speed=0.2),
-    _evaluation(4, 3.0, fell=0.0),
-    _evaluation(5, 2.0, fell=0.0, speed=0.5),
-    _evaluation(6, 9.0, fell=1.0),
+    evaluation_record(0, 5.0, fell=1.0, speed=0.1),
+    evaluation_record(1, None),
+    evaluation_record(2, 1.0, fell=0.0, speed=0.3),
+    evaluation_record(3, 7.0, fell=1.0, speed=0.2),
+    evaluation_record(4, 3.0, fell=0.0),
+    evaluation_record(5, 2.0, fell=0.0, speed=0.5),
+    evaluation_record(6, 9.0, fell=1.0),
 ]
 
 
@@ -43,7 +33,7 @@ def test_windows_their_quartiles_and_the_best_so_far_in_either_sense():
     assert [w.best_so_far for w in up.windows] == [5.0, 7.0, 9.0]
     down = run_history(RUN, window=3, maximize=False, metrics=None)
     assert [w.best_so_far for w in down.windows] == [1.0, 1.0, 1.0]
-    failed_first = run_history([_evaluation(0, None), *RUN[2:4]], 1, True, None)
+    failed_first = run_history([evaluation_record(0, None), *RUN[2:4]], 1, True, None)
     assert [w.best_so_far for w in failed_first.windows] == [None, 1.0, 7.0]
     assert failed_first.windows[0].fitness_quartiles is None
 

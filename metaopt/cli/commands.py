@@ -389,16 +389,24 @@ def runs_command(fmt: str, db_path: str) -> None:
         )
 
 
+def _window_option(flag: str, help: str):
+    """A click option counting evaluations in a window (at least 1, 100 by default)."""
+    return click.option(
+        flag,
+        type=click.IntRange(min=1, max=MAX_INT64),
+        default=DEFAULT_WINDOW,
+        show_default=True,
+        metavar="N",
+        help=help,
+    )
+
+
 @main.command("show")
 @click.argument("run_id")
-@click.option(
+@_window_option(
     "--recent",
-    type=click.IntRange(min=1, max=MAX_INT64),
-    default=DEFAULT_WINDOW,
-    show_default=True,
-    metavar="N",
-    help="Summarise the run's last N evaluations: median fitness and quartiles, each "
-    "metric's median (a 0/1 metric's share, e.g. of falls), beside the best.",
+    "Summarise the run's last N evaluations: median fitness and quartiles, each metric's "
+    "median (a 0/1 metric's share, e.g. of falls), beside the best.",
 )
 @format_option
 @db_option
@@ -417,13 +425,8 @@ def show_command(run_id: str, recent: int, fmt: str, db_path: str) -> None:
 
 @main.command("history")
 @click.argument("run_id")
-@click.option(
-    "--window",
-    type=click.IntRange(min=1, max=MAX_INT64),
-    default=DEFAULT_WINDOW,
-    show_default=True,
-    metavar="N",
-    help="Evaluations per row: the run's evaluations in consecutive windows of N.",
+@_window_option(
+    "--window", "Evaluations per row: the run's evaluations in consecutive windows of N."
 )
 @click.option(
     "--metric",
