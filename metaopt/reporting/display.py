@@ -378,8 +378,7 @@ def history_table(run: RunRecord, history: RunHistory) -> Table:
     for header in ("evaluations", "failed", "median fitness", "quartiles", "best so far"):
         table.add_column(header, justify="right")
     for name in history.metrics:
-        kind = "share" if name in history.shares else "median"
-        table.add_column(f"{name} ({kind})", justify="right", overflow="fold")
+        table.add_column(f"{name} ({history.kind(name)})", justify="right", overflow="fold")
     for window in history.windows:
         quartiles = window.fitness_quartiles
         cells = [
@@ -420,8 +419,7 @@ def history_records(history: RunHistory) -> list[dict[str, Any]]:
             "best_so_far": window.best_so_far,
         }
         for name in history.metrics:
-            kind = "share" if name in history.shares else "median"
-            record[f"{name}_{kind}"] = window.metrics[name]
+            record[f"{name}_{history.kind(name)}"] = window.metrics[name]
         records.append(record)
     return records
 

@@ -6,12 +6,13 @@ it traded on the way (`metaopt history`)."""
 
 from __future__ import annotations
 
-import statistics
+import math
 from collections.abc import Iterable, Sequence
 from dataclasses import dataclass
 
 from metaopt.errors import ConfigError
-from metaopt.reporting.recent import fitness_quartiles, is_flag
+from metaopt.reporting.convergence import convergence
+from metaopt.reporting.recent import fitness_quartiles, is_flag, metric_value
 from metaopt.storage.run_store import EvaluationRecord
 
 
@@ -38,6 +39,10 @@ class RunHistory:
     metrics: tuple[str, ...]
     shares: frozenset[str]
     windows: tuple[HistoryWindow, ...]
+
+    def kind(self, name: str) -> str:
+        """How a shown metric is summarised per window: "share" (a 0/1 metric) or "median"."""
+        return "share" if name in self.shares else "median"
 
 
 def run_history(
@@ -68,24 +73,17 @@ def run_history(
                 f"no metric {unknown[0]!r} in this run's evaluations; they report: {known}"
             )
         shown = tuple(dict.fromkeys(metrics))
+    fitness = [math.nan if r.fitness is None else r.fitness for r in records]
+    best = convergence(fitness, maximize, window=1).best  # NaN before the first success
     windows = []
-    best: float | None = None
     for start in range(0, len(records), window):
         chunk = records[start : start + window]
         fitnesses = [r.fitness for r in chunk if r.fitness is not None]
-        if fitnesses:
-            chunk_best = max(fitnesses) if maximize else min(fitnesses)
-            better = best is None or (chunk_best > best if maximize else chunk_best < best)
-            best = chunk_best if better else best
+        best_so_far = float(best[start + len(chunk) - 1])
         figures = {}
         for name in shown:
             values = [float(r.metrics[name]) for r in chunk if name in r.metrics]
-            if not values:
-                figures[name] = None
-            elif name in shares:
-                figures[name] = sum(values) / len(values)
-            else:
-                figures[name] = statistics.median(values)
+            figures[name] = metric_value(values, name in shares) if values else None
         windows.append(
             HistoryWindow(
                 first=chunk[0].index,
@@ -93,7 +91,7 @@ def run_history(
                 evaluations=len(chunk),
                 succeeded=len(fitnesses),
                 fitness_quartiles=fitness_quartiles(fitnesses),
-                best_so_far=best,
+                best_so_far=None if math.isnan(best_so_far) else best_so_far,
                 metrics=figures,
             )
         )

@@ -78,7 +78,11 @@ def is_flag(values: Iterable[float]) -> bool:
     return all(value in (0.0, 1.0) for value in values)
 
 
+def metric_value(values: Sequence[float], share: bool) -> float:
+    """A metric over a window: the share of its values at 1 (a flag), or their median."""
+    return sum(values) / len(values) if share else statistics.median(values)
+
+
 def _metric(name: str, values: list[float]) -> MetricFigure:
-    if is_flag(values):
-        return MetricFigure(name, sum(values) / len(values), True, len(values))
-    return MetricFigure(name, statistics.median(values), False, len(values))
+    share = is_flag(values)
+    return MetricFigure(name, metric_value(values, share), share, len(values))
