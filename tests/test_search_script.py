@@ -47,6 +47,7 @@ def refusal(tmp_path: Path, path: str, knob: str, value: str, **knobs: str) -> s
         ("BASIN_FELL", "5%", "a fall rate from 0 to 1"),
         ("RACE_FELL", "0,05", "a fall rate from 0 to 1"),
         ("DEADLINE", "30m", "a whole number, 1 or more"),
+        ("LATER_STAGES", "6m", "a whole number, 1 or more"),
         ("STAGE1_TIME", "0", "a whole number, 1 or more"),
         ("FLAT_BEST", "1m", "a fitness in metres, 0 or more"),
         ("FLAT_BEST", "-1", "a fitness in metres, 0 or more"),
@@ -78,6 +79,30 @@ def test_a_stage_1_time_must_leave_stage_1b_time_before_the_deadline(tmp_path):
         tmp_path, "/usr/bin:/bin", "STAGE1_TIME", "1410", DEADLINE="1800", STAGE1B_START="pool"
     )
     assert "STAGE1_TIME must leave stage 1b time" in line and "at most 1409" in line
+
+
+def test_the_later_stages_time_is_a_knob(tmp_path):
+    """LATER_STAGES=480 leaves 1320 s of a 1800 s deadline: stage 1 may take at most 1319."""
+    line = refusal(
+        tmp_path,
+        "/usr/bin:/bin",
+        "STAGE1_TIME",
+        "1320",
+        DEADLINE="1800",
+        LATER_STAGES="480",
+        STAGE1B_START="pool",
+    )
+    assert "at most 1319" in line and "480 s kept" in line
+
+
+def test_the_later_stages_time_needs_a_deadline_that_leaves_time(tmp_path):
+    """Without DEADLINE the knob would do nothing; at or past DEADLINE no stage 1b would run."""
+    line = refusal(tmp_path, "/usr/bin:/bin", "LATER_STAGES", "480", STAGE1B_START="pool")
+    assert "LATER_STAGES needs DEADLINE" in line
+    line = refusal(
+        tmp_path, "/usr/bin:/bin", "LATER_STAGES", "1800", DEADLINE="1800", STAGE1B_START="pool"
+    )
+    assert "DEADLINE must leave time" in line and "more than 1800" in line
 
 
 def test_flat_best_needs_the_pooled_basins(tmp_path):
