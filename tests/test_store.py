@@ -80,6 +80,17 @@ def test_unknown_run_names_the_known_ones(tmp_path):
             store.run("abc")
 
 
+def test_an_unknown_run_in_a_long_store_names_the_newest_and_the_count(tmp_path):
+    """Eleven runs: the message names the last ten and says there are eleven, not just ten."""
+    with RunStore(tmp_path / "c.db") as store:
+        for _ in range(11):
+            _new_run(store)
+        with pytest.raises(StoreError) as refused:
+            store.run(20)
+    message = str(refused.value)
+    assert "runs there: 11 runs, the last ten 2, 3, 4, 5, 6, 7, 8, 9, 10, 11" in message
+
+
 def test_two_writers_on_one_file_keep_all_their_data(tmp_path):
     path = tmp_path / "shared.db"
     first, second = RunStore(path), RunStore(path)
