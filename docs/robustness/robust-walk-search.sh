@@ -85,9 +85,9 @@
 # DEADLINE=SECONDS fits the search to a wall-clock limit (with STAGE1B_START=pool, where every
 # stage 1 comes first): each stage 1b gets the time left to the deadline, less LATER_STAGES
 # seconds (390 unless set) for the re-check, race and final table, shared among the pipelines
-# still to run (metaopt run
-# --max-time; STAGE1B_BUDGET stays the most it evaluates). Seeds 30-35 ran with 330 s (those
-# stages took 253-294 s on seeds 22-24); on seed 34 they took 330 s and the search 1801 s.
+# still to run (metaopt run --max-time; STAGE1B_BUDGET stays the most it evaluates).
+# Seeds 30-35 ran with 330 s (those stages took 253-294 s on seeds 22-24); on seed 34 they
+# took 330 s and the search 1801 s.
 # Seeds 36-58 ran with 360 s; on seed 56 they took 365 s and the search 1810 s.
 # STAGE1_TIME=SECONDS (with STAGE1B_START=pool) gives every stage-1 run together at most that
 # long: each run gets an even share of the stage-1 time left (metaopt run --max-time), so that a

@@ -446,9 +446,9 @@ class RunStore:
         row = cursor.fetchone()
         if row is None:
             ids = [str(r[0]) for r in self._connection.execute("SELECT id FROM runs ORDER BY id")]
-            known = ", ".join(ids) if ids else "none yet"
+            known = ", ".join(ids[-10:]) or "none yet"
             if len(ids) > 10:  # the newest, with the count, so that a long list stays one line
-                known = f"{len(ids)} runs, the last ten {', '.join(ids[-10:])} (metaopt runs)"
+                known = f"{len(ids)} runs, the last ten {known} (metaopt runs)"
             raise StoreError(f"no run {run_id} in {self.path}; runs there: {known}")
         return self._run_record(cursor, row)
 
