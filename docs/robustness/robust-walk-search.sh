@@ -99,6 +99,9 @@
 # DEADLINE, the pipeline's share of the time left is at least 60 s; the re-check takes the last
 # run of each pipeline. A flat basin (seeds 31 and 32 of the deadline searches: every candidate
 # fell, best below 0 m, against 2.4-5.7 m for the rest) otherwise costs a third of the tickets.
+# With PIPELINES=1 and DEADLINE the one stage 1b's share is all the time left, so FLAT_BEST acts
+# only on a stage 1b that spends its budget before the deadline (design P's seed 87 kept a flat
+# basin to the end).
 # FLAT_FELL=SHARE (with FLAT_BEST) also counts a stage 1b as flat when at least SHARE of its last
 # 100 candidates fell (metaopt show --recent 100: the share of the metric fell), whatever its
 # best: design J's seed 67 ran its 1400 evaluations in 156 s, all of the last 100 falling, with a
