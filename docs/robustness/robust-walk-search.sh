@@ -149,7 +149,7 @@
 # 79-81. Design O is design N with STAGE1_RUNS=7 STAGE1_TIME=490 (each stage-1 run keeps its
 # 70 s; stage 1b gets the time of the three runs left out), on fresh seeds 82-84. Design P is
 # design O with STAGE1_ENGINE=mujoco+ode STAGE1_RUNS=6 STAGE1_TIME=420 LATER_STAGES=620, on fresh
-# seeds 85-87 (pilot R: design O's seed 84 with STAGE1_ENGINE=mujoco+ode alone).
+# seeds 85-87 (pilot R: design O's command on seed 84 with only STAGE1_ENGINE=mujoco+ode added).
 # This is the thirteenth search, run after commit d228dc7 (nao-walk charges the flight
 # penalty past engine_cap). STAGE1B_START=all gives the twelfth's stage 1b, from all four
 # stage-1 bests; the twelfth (commit f1b7010) and the thirteenth's pilot ran before d228dc7.
