@@ -40,6 +40,14 @@ class Optimizer(ABC):
         harmony memory); a warm start puts its points there (metaopt.warm_start)."""
         return self.batch_size
 
+    @property
+    def selected(self) -> int | None:
+        """How many of a batch's best candidates its update reads, by their order and fitness
+        (CMA-ES: its parents, mu): the others it only needs to know rank below them, so a run
+        may tell them a bound (``metaopt run --screen``). None: every told fitness counts.
+        Holds for batches of ``batch_size``."""
+        return None
+
     def budget_warning(self, candidates: int) -> str | None:
         """Why a run that tells this optimizer ``candidates`` candidates would hardly be what
         the user meant (e.g. no more than its random initial population), or None."""

@@ -53,6 +53,23 @@ class Problem(ABC):
     def evaluate(self, x: np.ndarray, seed: int) -> Evaluation:
         """Evaluate one candidate (a 1-D array in space order)."""
 
+    #: True where ``screen`` gives a cheaper evaluation whose fitness the full one can only
+    #: worsen (``metaopt run --screen``); problems that set it implement ``screen`` and
+    #: ``complete``. A property where it depends on the problem's settings.
+    screens: bool = False
+
+    def screen(self, x: np.ndarray, seed: int) -> Evaluation:
+        """Optional: the cheap part of x's evaluation with seed, whose fitness is an optimistic
+        bound (the full evaluation's is never better), so a run that ranks candidates can skip
+        the rest for those already out of its ranks (e.g. nao-walk's worst over engines, walked
+        first on the faster engines). Problems without one raise NotImplementedError."""
+        raise NotImplementedError("has no cheaper bound on its fitness")
+
+    def complete(self, x: np.ndarray, seed: int, screened: Evaluation) -> Evaluation:
+        """The full evaluation of x with seed after ``screen`` gave ``screened``: equal to
+        ``evaluate(x, seed)``, reusing what the screen computed where it can."""
+        return self.evaluate(x, seed)
+
     def prepare(self) -> None:  # noqa: B027 - optional hook, empty by default
         """Optional: the set-up that evaluations share (importing an engine, building a model),
         done before an evaluation's time limit starts, so that no limit counts it and no

@@ -26,6 +26,7 @@ import numpy as np
 
 from metaopt.errors import ConfigError, RunFailed, SettingWarning
 from metaopt.executors.base import (
+    SCREEN_BOUND,
     EvaluationTask,
     Executor,
     Outcome,
@@ -35,7 +36,7 @@ from metaopt.executors.base import (
 )
 from metaopt.optimizer import Optimizer, OptimizerInfo
 from metaopt.params import resolve
-from metaopt.problem import Problem, ProblemInfo, Sense
+from metaopt.problem import Evaluation, Problem, ProblemInfo, Sense
 from metaopt.resampling import AGGREGATES, aggregate_fitness, aggregate_metrics
 from metaopt.seeding import CommonSeeds, EvaluationSeeds
 from metaopt.space import Space
@@ -91,6 +92,10 @@ class RunSettings:
     start_points: int = 0
     #: where the start points came from (stored candidates' names, runs), for people
     start_from: str | None = None
+    #: screen every candidate first (Problem.screen, a cheap optimistic bound) and complete
+    #: only those that can still enter the ranks the optimizer's update reads
+    #: (Optimizer.selected); the others are told their bound and stored as 'screened'
+    screen: bool = False
 
     def __post_init__(self) -> None:
         if self.start is not None and all(isinstance(v, int | float) for v in self.start):
@@ -120,6 +125,11 @@ class RunSettings:
         if not 0.0 <= self.start_spread <= 1.0:
             raise ConfigError(
                 f"start spread must be a share of each range in [0, 1], got {self.start_spread}"
+            )
+        if self.screen and (self.mode != "sync" or self.resample != 1):
+            raise ConfigError(
+                "screening ranks a whole batch at once: it runs in sync mode with one "
+                "evaluation per candidate (no --resample, no --mode async)"
             )
         if self.start_points < 0:
             raise ConfigError(
@@ -247,6 +257,8 @@ def _prepared(spec: RunSpec, optimizer_info: OptimizerInfo, problem_info: Proble
         if unfit is not None:
             warnings.warn(f"{optimizer_info.name}: {unfit}", SettingWarning, stacklevel=3)
         spec = _with_start_points(spec, problem.space, optimizer)
+        if spec.settings.screen:
+            _check_screening(spec, optimizer_info.name, optimizer, problem_info.name, problem)
         if spec.settings.mode == "async" and not optimizer.steady_state:
             raise ConfigError(
                 f"optimizer {optimizer_info.name!r} is generational, not steady-state: it "
@@ -256,6 +268,28 @@ def _prepared(spec: RunSpec, optimizer_info: OptimizerInfo, problem_info: Proble
         problem.close()
         raise
     return _Prepared(spec, problem, optimizer, optimizer_params, problem_params)
+
+
+def _check_screening(
+    spec: RunSpec, optimizer_name: str, optimizer: Optimizer, problem_name: str, problem: Problem
+) -> None:
+    """ConfigError unless the problem has a screen and the optimizer ranks whole batches."""
+    if not problem.screens:
+        raise ConfigError(
+            f"problem {problem_name!r} with these settings has no cheaper bound to screen "
+            "with; run without --screen (nao-walk screens with several engines and "
+            "engine_score=worst)"
+        )
+    if optimizer.selected is None:
+        raise ConfigError(
+            f"optimizer {optimizer_name!r} reads every candidate's fitness, so none can be "
+            "left screened; --screen needs one whose update reads only its best ranks (cmaes)"
+        )
+    if spec.settings.batch not in (0, optimizer.batch_size):
+        raise ConfigError(
+            f"--screen ranks the optimizer's own batch ({optimizer.batch_size} for "
+            f"{optimizer_name}); leave --batch out or give {optimizer.batch_size}"
+        )
 
 
 def _with_start_points(spec: RunSpec, space: Space, optimizer: Optimizer) -> RunSpec:
@@ -327,6 +361,9 @@ class _Candidate:
     number: int
     x: np.ndarray
     outcomes: list[Outcome | None]
+    #: the fitness the optimizer is told in place of the candidate's own, set where screening
+    #: ranked it below the optimizer's selected ranks (a bound, or past the cut)
+    bound: float | None = None
 
     @property
     def complete(self) -> bool:
@@ -480,8 +517,10 @@ class _Session:
                 _Candidate(first + i, x, [None] * self.resample)
                 for i, x in enumerate(self._ask(first, count))
             ]
-            futures = self._submit(executor, candidates)
-            self._collect(futures, candidates)
+            if self.settings.screen:
+                self._screen_and_complete(executor, candidates)
+            else:
+                self._collect(self._submit(executor, candidates), candidates)
             scores = np.array([self._score(c) for c in candidates])
             self.optimizer.tell(np.array([c.x for c in candidates]), scores)
             next_index += count * self.resample
@@ -574,12 +613,114 @@ class _Session:
                     candidate.outcomes[sample] = _outcome_of(stored)
                     self.stored += 1
                     continue
-                task = EvaluationTask(
-                    index, candidate.x, self.seeds(index), self.factory, self.problem_params,
-                    self.settings.time_limit, self.problem_key,
-                )  # fmt: skip
-                futures[executor.submit(task)] = candidate
+                futures[executor.submit(self._task(candidate, index))] = candidate
         return futures
+
+    def _task(
+        self, candidate: _Candidate, index: int, phase: str = "evaluate",
+        screened: Evaluation | None = None,
+    ) -> EvaluationTask:  # fmt: skip
+        return EvaluationTask(
+            index, candidate.x, self.seeds(index), self.factory, self.problem_params,
+            self.settings.time_limit, self.problem_key, phase, screened,
+        )  # fmt: skip
+
+    def _screen_and_complete(self, executor: Executor, candidates: list[_Candidate]) -> None:
+        """Screen the batch, then complete its candidates best bound first until no other can
+        enter the optimizer's selected ranks: candidate j is completed unless ``selected`` of
+        those before it scored better than its bound (none after it can: their full fitness
+        is no better than their bound). The cut depends on the scores alone, not on timing,
+        so a run is the same for any number of workers; those started ahead of the cut
+        (one per idle worker) are stored complete, and told their bound like the rest."""
+        reused = self._reused_complete(candidates)
+        by_number = {c.number: c for c in candidates}
+        screened: dict[int, Outcome] = {}
+        for future, candidate in self._submit_phase(executor, candidates, "screen").items():
+            screened[candidate.number] = future.result()
+        for number, outcome in screened.items():
+            if outcome.fitness is None:  # a failed screen fails the candidate
+                self._record(by_number[number], outcome)
+        order = sorted(
+            (c for c in candidates if screened[c.number].fitness is not None),
+            key=lambda c: (self.sign * screened[c.number].fitness, c.number),
+        )
+        bounds = [self.sign * screened[c.number].fitness for c in order]
+        selected = self.optimizer.selected or len(order)
+        done: dict[int, Outcome] = {}
+        in_flight: dict[Future, _Candidate] = {}
+        decided: list[float] = []  # the scores of order[:len(decided)], all completed
+        ahead = 0  # order[:ahead] are started (or reused)
+        cut = len(order)
+        while len(decided) < cut:
+            while (
+                len(in_flight) < executor.workers and ahead < cut
+                and sum(score < bounds[ahead] for score in decided) < selected
+            ):  # fmt: skip
+                candidate = order[ahead]
+                ahead += 1
+                if candidate.number in reused:
+                    done[candidate.number] = candidate.outcomes[0] = reused[candidate.number]
+                    self.stored += 1
+                    continue
+                screen = _evaluation_of(screened[candidate.number])
+                task = self._task(candidate, candidate.number, "complete", screen)
+                in_flight[executor.submit(task)] = candidate
+            while len(decided) < cut:
+                position = len(decided)
+                if sum(score < bounds[position] for score in decided) >= selected:
+                    cut = position
+                elif order[position].number in done:
+                    decided.append(self._told_score(done[order[position].number]))
+                else:
+                    break
+            if len(decided) < cut:
+                assert in_flight, "a candidate still to decide is being completed"
+                finished, _ = wait(list(in_flight), return_when=FIRST_COMPLETED)
+                for future in finished:
+                    candidate = in_flight.pop(future)
+                    done[candidate.number] = self._completed(candidate, future.result(), screened)
+        for future in as_completed(list(in_flight)):  # started ahead of the cut: kept
+            candidate = in_flight[future]
+            done[candidate.number] = self._completed(candidate, future.result(), screened)
+        for candidate in order[cut:]:
+            screen = screened[candidate.number]
+            candidate.bound = screen.fitness
+            if candidate.number not in done:
+                bound = {**screen.metrics, SCREEN_BOUND: screen.fitness}
+                self._record(candidate, replace(screen, screened=True, fitness=None, metrics=bound))
+
+    def _reused_complete(self, candidates: list[_Candidate]) -> dict[int, Outcome]:
+        """A resumed batch's candidates stored complete (or failed) before the interruption,
+        by number; stored screens are done again, since the order needs every bound."""
+        reused: dict[int, Outcome] = {}
+        for candidate in candidates:
+            stored = self.reusable.pop(candidate.number, None)
+            if (
+                stored is not None and stored.status != "screened"
+                and stored.x.tobytes() == candidate.x.tobytes()
+            ):  # fmt: skip
+                reused[candidate.number] = _outcome_of(stored)
+        return reused
+
+    def _submit_phase(
+        self, executor: Executor, candidates: list[_Candidate], phase: str
+    ) -> dict[Future, _Candidate]:
+        """Start one phase of every candidate's evaluation and wait for them all."""
+        futures = {executor.submit(self._task(c, c.number, phase)): c for c in candidates}
+        wait(list(futures))
+        return futures
+
+    def _completed(
+        self, candidate: _Candidate, outcome: Outcome, screened: dict[int, Outcome]
+    ) -> Outcome:
+        """A complete phase's outcome, stored at once, its wall time counting the screen's."""
+        outcome = replace(outcome, wall_time=outcome.wall_time + screened[outcome.index].wall_time)
+        self._record(candidate, outcome)
+        return outcome
+
+    def _told_score(self, outcome: Outcome) -> float:
+        """The (minimizing) score of a completed outcome: +inf where it failed."""
+        return math.inf if outcome.fitness is None else self.sign * outcome.fitness
 
     def _collect(self, futures: dict[Future, _Candidate], candidates: list[_Candidate]) -> None:
         """Store every outcome as soon as it completes (in-process ones without waiting)."""
@@ -601,6 +742,7 @@ class _Session:
         self.store.add_evaluation(
             self.run_id, outcome.index, candidate.number, candidate.x, outcome.fitness,
             outcome.metrics, outcome.error, self.seeds(outcome.index), outcome.wall_time,
+            outcome.screened,
         )  # fmt: skip
         if self.failed >= self.stored >= ALL_FAILED_STOP and self.stored < self.total:
             raise RunFailed(self._why_failed() + "; stopped early")
@@ -624,6 +766,10 @@ class _Session:
         """The optimizer's (minimizing) score of a complete candidate, +inf if any sample
         failed; keeps the best candidate so far."""
         outcomes = candidate.outcomes
+        if candidate.bound is not None:  # ranked below the selected ones: never the best
+            return self.sign * candidate.bound
+        if outcomes[0].screened:  # told its bound (resumed: stored as screened)
+            return self.sign * outcomes[0].metrics[SCREEN_BOUND]
         if any(o.fitness is None for o in outcomes):
             return math.inf
         aggregate = self.settings.aggregate
@@ -669,8 +815,14 @@ class _Session:
 def _outcome_of(evaluation: EvaluationRecord) -> Outcome:
     return Outcome(
         evaluation.index, evaluation.fitness, evaluation.metrics, evaluation.error,
-        evaluation.wall_time,
+        evaluation.wall_time, evaluation.status == "screened",
     )  # fmt: skip
+
+
+def _evaluation_of(outcome: Outcome) -> Evaluation:
+    """A screen's outcome as the Evaluation its complete phase continues from."""
+    assert outcome.fitness is not None
+    return Evaluation(outcome.fitness, dict(outcome.metrics))
 
 
 @contextmanager

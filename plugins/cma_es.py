@@ -113,6 +113,12 @@ class CMAES(Optimizer):
         """One generation: lambda candidates."""
         return self.constants.population
 
+    @property
+    def selected(self) -> int:
+        """The update reads the better half (mu = lambda // 2) by rank; the others get no
+        weight."""
+        return self.constants.parents
+
     def budget_warning(self, candidates: int) -> str | None:
         """A run no longer than the first, uniform generation never uses the distribution."""
         if candidates <= self.constants.population:

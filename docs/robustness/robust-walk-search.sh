@@ -52,6 +52,11 @@
 # every candidate, in place of one cell drawn per evaluation. The whole searches on fresh seeds
 # 15-16 (17 was stopped) ran STAGE1B_RESAMPLE=3 STAGE1B_BUDGET=540 STAGE1B_SET="flight_allowed=0.035
 # engine_score=worst worlds=standard".
+# STAGE1B_SCREEN=1 screens stage 1b (metaopt run --screen; with STAGE1B_OPTIMIZER=cmaes and
+# engine_score=worst in STAGE1B_SET): each candidate walks on MuJoCo and ODE first, and on
+# PyBullet only where it can still rank in CMA-ES's better half, which changes no step of
+# CMA-ES but buys stage 1b more candidates in its time (benchmarks/screening.py). Design Q is
+# design O with STAGE1B_SCREEN=1. FLAT_FELL's share is then over the completed candidates.
 # STAGE1B_OPTIMIZER=NAME runs stage 1b with another optimizer than hs (its settings through
 # STAGE1B_SET): STAGE1B_OPTIMIZER=cmaes STAGE1B_SET="sigma0=0.05 ..." is CMA-ES started at the
 # raced basin, its first generation the basin and 11 points around it (a generation is 12 for the
@@ -159,7 +164,7 @@
 # script at commit 5ed7043, the seventh at 3c42de4, the sixth at 6e1fe34, the fifth at
 # 3c8db53, the fourth at ff6956d, the third at abce00d, the second at 9d03e62.
 set -euo pipefail
-seed=${1:?usage: [DEADLINE=SECONDS LATER_STAGES=SECONDS STAGE1_TIME=SECONDS STAGE1_OPTIMIZER=NAME STAGE1_BATCH=B BASIN_FELL=RATE RACE_FELL=RATE STAGE1B_BUDGET=N STAGE1B_OPTIMIZER=NAME STAGE1B_BATCH=B PIPELINES=N STAGE1_RUNS=R STAGE1B_RESAMPLE=K TOP=K STAGE1_ENGINE=E STAGE1_SET="NAME=VALUE ..." STAGE1B_START=all|raced|pool STAGE1B_SET="NAME=VALUE ..." STAGE1B_CELLS="NAME,..." FLAT_BEST=METRES FLAT_FELL=SHARE] robust-walk-search.sh SEED}
+seed=${1:?usage: [DEADLINE=SECONDS LATER_STAGES=SECONDS STAGE1_TIME=SECONDS STAGE1_OPTIMIZER=NAME STAGE1_BATCH=B BASIN_FELL=RATE RACE_FELL=RATE STAGE1B_BUDGET=N STAGE1B_OPTIMIZER=NAME STAGE1B_BATCH=B STAGE1B_SCREEN=1 PIPELINES=N STAGE1_RUNS=R STAGE1B_RESAMPLE=K TOP=K STAGE1_ENGINE=E STAGE1_SET="NAME=VALUE ..." STAGE1B_START=all|raced|pool STAGE1B_SET="NAME=VALUE ..." STAGE1B_CELLS="NAME,..." FLAT_BEST=METRES FLAT_FELL=SHARE] robust-walk-search.sh SEED}
 stage1b_budget=${STAGE1B_BUDGET:-600}
 stage1b_optimizer=${STAGE1B_OPTIMIZER:-hs}
 stage1b_batch=${STAGE1B_BATCH:-2}
@@ -250,6 +255,7 @@ stage1b_run=(-o "$stage1b_optimizer" -p nao-walk --budget "$stage1b_budget" --wo
     --batch "$stage1b_batch" "${walk[@]}" --set flight_penalty=50
     --set backend=mujoco+pybullet+ode --set engine_score=mean --set engine_cap=6 --set noise=0.1
     --set fitness=progress)
+if [ -n "${STAGE1B_SCREEN:-}" ]; then stage1b_run+=(--screen); fi
 if [ -n "${STAGE1B_RESAMPLE:-}" ]; then
     stage1b_run+=(--resample "$STAGE1B_RESAMPLE" --common-seeds)
 fi

@@ -198,6 +198,13 @@ def list_plugins(name: str | None) -> None:
     help="Evaluate every candidate on the same --resample seeds (common random numbers).",
 )
 @click.option(
+    "--screen",
+    is_flag=True,
+    help="Screen every candidate of a batch first (the problem's cheap bound on its fitness) and "
+    "complete only those that can still rank among the ones the optimizer's update reads "
+    "(cmaes; nao-walk with several engines and engine_score=worst).",
+)
+@click.option(
     "--time-limit",
     type=click.FloatRange(min=0, min_open=True, max=1e6),
     default=None,
@@ -262,6 +269,7 @@ def run_command(
     resample: int,
     aggregate: str,
     common_seeds: bool,
+    screen: bool,
     time_limit: float | None,
     max_time: float | None,
     target: float | None,
@@ -302,6 +310,7 @@ def run_command(
             start_spread=start_spread,
             start_points=start_points,
             start_from=", ".join(label for label, _ in starts) or None,
+            screen=screen,
         ),
     )
     spec.settings.check(spec.budget)

@@ -22,7 +22,7 @@ from typing import Any
 
 import numpy as np
 
-from metaopt.problem import Problem
+from metaopt.problem import Evaluation, Problem
 
 
 @dataclass(frozen=True)
@@ -38,6 +38,10 @@ class EvaluationTask:
     #: problem_key(factory, params), when the sender has it already (saves a JSON encoding per
     #: task); empty: computed where the task runs.
     problem_key: str = ""
+    #: "evaluate" (the whole evaluation), "screen" (only its cheap part, Problem.screen) or
+    #: "complete" (the rest after a screen that gave ``screened``, Problem.complete)
+    phase: str = "evaluate"
+    screened: Evaluation | None = None
 
 
 @dataclass
@@ -49,11 +53,19 @@ class Outcome:
     metrics: dict[str, float] = field(default_factory=dict)
     error: str | None = None
     wall_time: float = 0.0
+    #: a screen's bound stands in for the fitness (None): the full evaluation was not needed
+    #: (metaopt run --screen); metrics hold the screen's, and the bound as SCREEN_BOUND
+    screened: bool = False
 
     @property
     def timed_out(self) -> bool:
         """Stopped by its time limit (the process that ran it may hold a half-done import)."""
         return self.error is not None and self.error.startswith(EvaluationTimeout.__name__)
+
+
+#: The metric a screened evaluation stores its bound in (the fitness its full evaluation could
+#: not have bettered).
+SCREEN_BOUND = "screen_bound"
 
 
 class EvaluationTimeout(Exception):
@@ -110,7 +122,7 @@ def evaluate_task(task: EvaluationTask) -> Outcome:
     try:
         problem = prepared_problem(task)
         with _alarm(task.time_limit):
-            evaluation = problem.evaluate(task.x, task.seed)
+            evaluation = _run_phase(problem, task)
         fitness = float(evaluation.fitness)
     except (KeyboardInterrupt, SystemExit):
         raise
@@ -121,6 +133,16 @@ def evaluate_task(task: EvaluationTask) -> Outcome:
     if not math.isfinite(fitness):
         return Outcome(task.index, None, error=f"fitness is {fitness}", wall_time=wall)
     return Outcome(task.index, fitness, dict(evaluation.metrics), wall_time=wall)
+
+
+def _run_phase(problem: Problem, task: EvaluationTask) -> Evaluation:
+    """The part of the evaluation the task asks for (EvaluationTask.phase)."""
+    if task.phase == "screen":
+        return problem.screen(task.x, task.seed)
+    if task.phase == "complete":
+        assert task.screened is not None, "a complete task carries its screen's evaluation"
+        return problem.complete(task.x, task.seed, task.screened)
+    return problem.evaluate(task.x, task.seed)
 
 
 class _alarm:

@@ -106,7 +106,9 @@ class DaskExecutor(Executor):
             return 0
 
     def _start(self, task: EvaluationTask, result: Future, attempt: int) -> None:
-        key = f"metaopt-eval-{task.index}-{task.seed}-{attempt}"
+        # A screened candidate's index is evaluated twice (screen, then complete): the phase
+        # keeps the keys apart, since the cluster hands back a finished key's result.
+        key = f"metaopt-{task.phase}-{task.index}-{task.seed}-{attempt}"
         dask_future = self._client.submit(evaluate_task, task, key=key, pure=False)
 
         def settle(done) -> None:

@@ -189,6 +189,8 @@ def settings_text(settings: dict[str, Any]) -> str:
         parts.append(f"resample {settings['resample']} ({settings.get('aggregate', 'mean')})")
     if settings.get("common_seeds"):
         parts.append("common seeds")
+    if settings.get("screen"):
+        parts.append("screened")
     if settings.get("time_limit") is not None:
         parts.append(f"limit {settings['time_limit']:g} s")
     if settings.get("max_time") is not None:
@@ -296,6 +298,7 @@ def recent_document(recent: RecentFigures) -> dict[str, Any]:
         "evaluations": [recent.first, recent.last],
         "count": recent.evaluations,
         "succeeded": recent.succeeded,
+        "screened": recent.screened,
         "fitness": None
         if quartiles is None
         else dict(zip(("lower_quartile", "median", "upper_quartile"), quartiles)),
@@ -344,13 +347,15 @@ def run_detail(
 def _recent_rows(table: Table, recent: RecentFigures) -> None:
     """The last evaluations' rows of `metaopt show`: fitness median and quartiles, then each
     metric's median, or its share of evaluations where it is 1 (a flag such as a fall)."""
-    failed = recent.evaluations - recent.succeeded
+    failed = recent.evaluations - recent.succeeded - recent.screened
     heading = f"last {recent.evaluations} evaluations ({recent.first}-{recent.last})"
     if recent.fitness_quartiles is None:
         table.add_row(heading, f"fitness: all {failed} failed")
         return
     lower, median, upper = recent.fitness_quartiles
     failures = f", {failed} failed" if failed else ""
+    if recent.screened:  # their fitness is unknown, and worse than the completed ones'
+        failures += f"; {recent.screened} screened, the figures are the other {recent.succeeded}"
     table.add_row(
         heading,
         f"median fitness {format_number(median)} (quartiles {format_number(lower)} to "
@@ -366,8 +371,9 @@ def _recent_rows(table: Table, recent: RecentFigures) -> None:
 
 
 def history_table(run: RunRecord, history: RunHistory) -> Table:
-    """`metaopt history RUN`: a row per window of evaluations: failures, fitness median and
-    quartiles, the best so far, and each shown metric's median or share (a share in %)."""
+    """`metaopt history RUN`: a row per window of evaluations: failures (and screened ones,
+    where the run screened), fitness median and quartiles, the best so far, and each shown
+    metric's median or share (a share in %)."""
     better = "higher" if run.sense == "maximize" else "lower"
     table = Table(
         title=f"run {run.id}: {history.window} evaluations a row ({better} fitness is better)",
@@ -375,7 +381,10 @@ def history_table(run: RunRecord, history: RunHistory) -> Table:
         box=box.SIMPLE_HEAD,
         pad_edge=False,
     )
-    for header in ("evaluations", "failed", "median fitness", "quartiles", "best so far"):
+    screened = any(window.screened for window in history.windows)  # metaopt run --screen
+    headers = ("evaluations", "failed", *(("screened",) if screened else ()), "median fitness",
+               "quartiles", "best so far")  # fmt: skip
+    for header in headers:
         table.add_column(header, justify="right")
     for name in history.metrics:
         table.add_column(f"{name} ({history.kind(name)})", justify="right", overflow="fold")
@@ -383,7 +392,8 @@ def history_table(run: RunRecord, history: RunHistory) -> Table:
         quartiles = window.fitness_quartiles
         cells = [
             f"{window.first}-{window.last}",
-            str(window.evaluations - window.succeeded),
+            str(window.evaluations - window.succeeded - window.screened),
+            *((str(window.screened),) if screened else ()),
             "-" if quartiles is None else format_number(quartiles[1]),
             "-"
             if quartiles is None
@@ -412,7 +422,8 @@ def history_records(history: RunHistory) -> list[dict[str, Any]]:
             "first": window.first,
             "last": window.last,
             "evaluations": window.evaluations,
-            "failed": window.evaluations - window.succeeded,
+            "failed": window.evaluations - window.succeeded - window.screened,
+            "screened": window.screened,
             "fitness_lower_quartile": lower,
             "fitness_median": median,
             "fitness_upper_quartile": upper,

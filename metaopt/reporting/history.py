@@ -12,7 +12,7 @@ from dataclasses import dataclass
 
 from metaopt.errors import ConfigError
 from metaopt.reporting.convergence import convergence
-from metaopt.reporting.recent import fitness_quartiles, is_flag, metric_value
+from metaopt.reporting.recent import completed, fitness_quartiles, is_flag, metric_value
 from metaopt.storage.run_store import EvaluationRecord
 
 
@@ -20,7 +20,8 @@ from metaopt.storage.run_store import EvaluationRecord
 class HistoryWindow:
     """One window of a run's evaluations: index range, how many succeeded, their fitness
     quartiles (None: none succeeded), the best fitness of every evaluation up to the window's
-    last (None: none yet), and each shown metric's median or share (None: none reported it)."""
+    last (None: none yet), and each shown metric's median or share (None: none reported it),
+    over its completed evaluations; screened ones (metaopt run --screen) are counted apart."""
 
     first: int
     last: int
@@ -29,6 +30,7 @@ class HistoryWindow:
     fitness_quartiles: tuple[float, float, float] | None
     best_so_far: float | None
     metrics: dict[str, float | None]
+    screened: int = 0
 
 
 @dataclass(frozen=True)
@@ -59,7 +61,7 @@ def run_history(
         raise ConfigError(f"a history window must hold at least 1 evaluation; got {window}")
     records = list(evaluations)
     reported: dict[str, list[float]] = {}
-    for record in records:
+    for record in completed(records):
         for name, value in record.metrics.items():
             reported.setdefault(name, []).append(float(value))
     shares = frozenset(name for name, values in reported.items() if is_flag(values))
@@ -78,11 +80,12 @@ def run_history(
     windows = []
     for start in range(0, len(records), window):
         chunk = records[start : start + window]
-        fitnesses = [r.fitness for r in chunk if r.fitness is not None]
+        whole = completed(chunk)
+        fitnesses = [r.fitness for r in whole if r.fitness is not None]
         best_so_far = float(best[start + len(chunk) - 1])
         figures = {}
         for name in shown:
-            values = [float(r.metrics[name]) for r in chunk if name in r.metrics]
+            values = [float(r.metrics[name]) for r in whole if name in r.metrics]
             figures[name] = metric_value(values, name in shares) if values else None
         windows.append(
             HistoryWindow(
@@ -93,6 +96,7 @@ def run_history(
                 fitness_quartiles=fitness_quartiles(fitnesses),
                 best_so_far=None if math.isnan(best_so_far) else best_so_far,
                 metrics=figures,
+                screened=len(chunk) - len(whole),
             )
         )
     return RunHistory(window, shown, shares & frozenset(shown), tuple(windows))

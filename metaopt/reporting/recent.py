@@ -31,7 +31,9 @@ class MetricFigure:
 @dataclass(frozen=True)
 class RecentFigures:
     """The last ``window`` evaluations of a run (fewer when it has fewer): index range,
-    how many succeeded, their fitness quartiles and their metrics."""
+    how many succeeded, their fitness quartiles and their metrics. Screened evaluations
+    (metaopt run --screen) have no fitness and are counted apart: the figures are the
+    completed ones', which ranked above them."""
 
     first: int
     last: int
@@ -39,6 +41,7 @@ class RecentFigures:
     succeeded: int
     fitness_quartiles: tuple[float, float, float] | None  # None: none succeeded
     metrics: tuple[MetricFigure, ...]
+    screened: int = 0
 
 
 def recent_figures(evaluations: Iterable[EvaluationRecord]) -> RecentFigures | None:
@@ -49,7 +52,7 @@ def recent_figures(evaluations: Iterable[EvaluationRecord]) -> RecentFigures | N
         return None
     fitnesses = [e.fitness for e in window if e.fitness is not None]
     values: dict[str, list[float]] = {}
-    for evaluation in window:
+    for evaluation in completed(window):
         for name, value in evaluation.metrics.items():
             values.setdefault(name, []).append(float(value))
     metrics = tuple(_metric(name, found) for name, found in values.items())
@@ -60,7 +63,13 @@ def recent_figures(evaluations: Iterable[EvaluationRecord]) -> RecentFigures | N
         len(fitnesses),
         fitness_quartiles(fitnesses),
         metrics,
+        len(window) - len(completed(window)),
     )
+
+
+def completed(evaluations: Sequence[EvaluationRecord]) -> list[EvaluationRecord]:
+    """The evaluations that ran whole: not screened (a screen's metrics are a part's)."""
+    return [e for e in evaluations if e.status != "screened"]
 
 
 def fitness_quartiles(fitnesses: Sequence[float]) -> tuple[float, float, float] | None:

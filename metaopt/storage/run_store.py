@@ -113,7 +113,8 @@ class RunRecord:
 
 @dataclass
 class EvaluationRecord:
-    """One stored evaluation. ``fitness`` is None when it failed."""
+    """One stored evaluation. ``fitness`` is None when it failed (status 'failed') or when
+    only its screen ran (status 'screened', metrics hold the bound: metaopt run --screen)."""
 
     index: int
     candidate: int
@@ -292,8 +293,11 @@ class RunStore:
         error: str | None,
         seed: int,
         wall_time: float,
+        screened: bool = False,
     ) -> None:
-        """Queue one finished evaluation; the flusher commits it within FLUSH_INTERVAL."""
+        """Queue one finished evaluation (screened: only its screen ran, its fitness is None and
+        its metrics hold the bound); the flusher commits it within FLUSH_INTERVAL."""
+        status = "failed" if error is not None else "screened" if screened else "ok"
         row = (
             run_id,
             index,
@@ -301,7 +305,7 @@ class RunStore:
             np.asarray(x, dtype="<f8").tobytes(),
             fitness,
             json.dumps(metrics) if metrics else None,
-            "ok" if error is None else "failed",
+            status,
             error,
             seed,
             wall_time,

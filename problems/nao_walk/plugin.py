@@ -94,6 +94,8 @@ PUSH_BEFORE_END_S = 3.0
 CELL_SEPARATOR = ","
 #: How several engines' fitnesses make one: the worst of them, or their mean.
 ENGINE_SCORES = ("worst", "mean")
+#: With several engines, each engine's fitness is a metric too: this name, then @ENGINE.
+FITNESS_METRIC = "fitness"
 
 PARAMS = (
     Param("backend", str, "mujoco", "physics engine (an installed physics backend plugin), or "
@@ -105,6 +107,10 @@ PARAMS = (
           "most this before its flight penalty and before engine_score takes the worst or the "
           "mean (0 = no cap): with the mean, going past the cap on one engine stops paying, so "
           "the slower engines must catch up, and running there still costs", low=0.0),
+    Param("screen_engines", str, "", "with several engines and engine_score=worst: the "
+          "engines metaopt run --screen walks a candidate on first, joined by '+' (empty: all "
+          "but pybullet, the slowest); the worst of them bounds its fitness, and it walks on "
+          "the others only where the run needs its full score"),
     Param("controller", str, "paper", "paper (the paper's CPG and its 10 parameters), "
           "extended (sway, knee lift, torso feedback; docs/nao-walk.md), stride (extended, "
           "with a knee phase and an ankle push-off), steered (stride, with heading "
@@ -252,6 +258,7 @@ class NaoWalk(Problem):
         world_cells: str = "",
         engine_score: str = "worst",
         engine_cap: float = 0.0,
+        screen_engines: str = "",
     ) -> None:
         #: every parameter, to build the perturbed worlds from (worlds=standard)
         self._params = {k: v for k, v in locals().items() if k not in ("self", "__class__")}
@@ -311,12 +318,33 @@ class NaoWalk(Problem):
         _require_choice("engine_score", engine_score, ENGINE_SCORES)
         self.engine_score = engine_score
         self.engine_cap = engine_cap
+        self.screen_engines = self._screen_engines(screen_engines)
         #: the standard table's cells an evaluation's seed draws from (none: its own world)
         self.world_cells = _cell_indices(world_cells, worlds)
         self._worlds: dict[int, NaoWalk] = {}
         for cell in self.world_cells:
             self._world(cell).close()  # a world refusing its parameters says so now
             del self._worlds[cell]
+
+    def _screen_engines(self, given: str) -> tuple[str, ...]:
+        """The engines a screen walks on, in the backend's order (none: no screen)."""
+        if not given:
+            slowest = "pybullet"
+            if len(self.engines) < 2 or slowest not in self.engines:
+                return ()
+            return tuple(engine for engine in self.engines if engine != slowest)
+        named = engine_names(given)
+        if not set(named) < set(self.engines):
+            raise ConfigError(
+                f"nao-walk: screen_engines {given!r} must name some of the backend's engines "
+                f"({'+'.join(self.engines)}), not all of them"
+            )
+        return tuple(engine for engine in self.engines if engine in named)
+
+    @property
+    def screens(self) -> bool:
+        """With several engines scored by the worst: their worst on screen_engines bounds it."""
+        return self.engine_score == "worst" and bool(self.screen_engines)
 
     @property
     def runner(self) -> EpisodeRunner:
@@ -378,9 +406,32 @@ class NaoWalk(Problem):
         return world
 
     def evaluate(self, x: np.ndarray, seed: int) -> Evaluation:
+        return self._in_drawn_world(seed, lambda walk, push: walk._evaluate(x, seed, push))
+
+    def screen(self, x: np.ndarray, seed: int) -> Evaluation:
+        """x walked on the screen engines alone: the worst there is no worse than the worst on
+        every engine."""
+        return self._in_drawn_world(
+            seed, lambda walk, push: walk._evaluate(x, seed, push, walk.screen_engines)
+        )
+
+    def complete(self, x: np.ndarray, seed: int, screened: Evaluation) -> Evaluation:
+        """x walked on the engines its screen left out, scored with the screen's walks (read
+        back from its per-engine metrics): the same Evaluation as ``evaluate``."""
+        walked = {engine: _engine_evaluation(screened.metrics, engine)
+                  for engine in self.screen_engines}  # fmt: skip
+        return self._in_drawn_world(
+            seed, lambda walk, push: walk._evaluate(x, seed, push, walked=walked)
+        )
+
+    def _in_drawn_world(
+        self, seed: int, walk_in: Callable[[NaoWalk, Push | None], Evaluation]
+    ) -> Evaluation:
+        """walk_in(world, push) for the world and push seed draws, with what was drawn added
+        to its metrics."""
         cell, walk = self._drawn_world(seed)
         push = self._push_of(walk, seed)
-        evaluation = walk._evaluate(x, seed, push)
+        evaluation = walk_in(walk, push)
         drawn: dict[str, float] = {}
         if cell is not None:
             drawn["world"] = float(cell)
@@ -402,21 +453,28 @@ class NaoWalk(Problem):
             return None
         return self.drawn_push(seed)
 
-    def _evaluate(self, x: np.ndarray, seed: int, push: Push | None = None) -> Evaluation:
-        """x's evaluation on every engine, scored by engine_score; ``push`` replaces the
-        settings' push."""
+    def _evaluate(
+        self, x: np.ndarray, seed: int, push: Push | None = None,
+        engines: tuple[str, ...] = (), walked: Mapping[str, Evaluation] | None = None,
+    ) -> Evaluation:  # fmt: skip
+        """x's evaluation on ``engines`` (default: every engine), scored by engine_score;
+        ``push`` replaces the settings' push; ``walked`` holds engines' evaluations already
+        made (a screen's)."""
         gait = self.gait(x)
         if len(self.engines) == 1:
             return self._evaluate_on(self.engines[0], gait, seed, push=push)
         cap = self.engine_cap or math.inf
+        walked = walked or {}
         on_engine = {
-            engine: self._evaluate_on(engine, gait, seed, cap, push) for engine in self.engines
+            engine: walked.get(engine) or self._evaluate_on(engine, gait, seed, cap, push)
+            for engine in engines or self.engines
         }
         worst = min(on_engine.values(), key=lambda evaluation: evaluation.fitness)
         metrics = dict(worst.metrics)
         for engine, evaluation in on_engine.items():
             for name, value in evaluation.metrics.items():
                 metrics[f"{name}@{engine}"] = value
+            metrics[f"{FITNESS_METRIC}@{engine}"] = evaluation.fitness
         scores = [e.fitness for e in on_engine.values()]
         if self.engine_score == "mean":
             return Evaluation(float(np.mean(scores)), metrics)
@@ -472,6 +530,14 @@ class NaoWalk(Problem):
     def __getstate__(self) -> dict[str, Any]:
         # Engines do not pickle; each process builds its own on first use.
         return {**self.__dict__, "_runners": {}, "_worlds": {}}
+
+
+def _engine_evaluation(metrics: Mapping[str, float], engine: str) -> Evaluation:
+    """One engine's Evaluation, read back from a several-engine evaluation's metrics."""
+    suffix = f"@{engine}"
+    own = {name.removesuffix(suffix): value for name, value in metrics.items()
+           if name.endswith(suffix)}  # fmt: skip
+    return Evaluation(own.pop(FITNESS_METRIC), own)
 
 
 def _stored_gaits() -> dict[str, StoredCandidate]:

@@ -1,0 +1,253 @@
+"""metaopt run --screen: a cheap bound first, the full evaluation only where a rank needs it."""
+
+import json
+
+import numpy as np
+import pytest
+from click.testing import CliRunner
+
+from metaopt import ConfigError, Evaluation, Problem, ProblemInfo, Space
+from metaopt.cli import main
+from metaopt.plugins import registry
+from metaopt.run_loop import RunSettings, RunSpec, resume, run
+from metaopt.storage.run_store import RunStore
+
+POPULATION = 24
+
+
+class TwoPartSphere(Problem):
+    """Minimize the worse of two spheres; the screen computes the first one alone (the full
+    fitness, their max, is never lower). Counts the complete phases it ran."""
+
+    screens = True
+
+    def __init__(self, interrupt_at: int = -1) -> None:
+        self.space = Space.from_bounds([-1.0] * 4, [1.0] * 4)
+        self.completed = 0
+        self.interrupt_at = interrupt_at
+
+    def _first(self, x: np.ndarray) -> float:
+        return float(np.sum((x - 0.3) ** 2))
+
+    def _second(self, x: np.ndarray) -> float:
+        return float(np.sum((x + 0.1) ** 2)) * 0.8
+
+    def evaluate(self, x, seed):
+        return Evaluation(max(self._first(x), self._second(x)), {"part": 0.0})
+
+    def screen(self, x, seed):
+        return Evaluation(self._first(x), {"part": 1.0})
+
+    def complete(self, x, seed, screened):
+        self.completed += 1
+        if self.completed == self.interrupt_at:
+            raise KeyboardInterrupt
+        return Evaluation(max(screened.fitness, self._second(x)), {"part": 0.0})
+
+
+def _info(problem: TwoPartSphere) -> ProblemInfo:
+    return ProblemInfo("two-part-sphere", "test", factory=lambda: problem)
+
+
+def _run(store, problem, screen, budget=POPULATION * 12, optimizer="cmaes", **settings):
+    params = {"population": POPULATION, "sigma0": 0.3} if optimizer == "cmaes" else {}
+    spec = RunSpec(optimizer, "two-part-sphere", budget, 5, optimizer_params=params,
+                   settings=RunSettings(screen=screen, **settings))  # fmt: skip
+    return run(spec, registry().optimizer(optimizer), _info(problem), store)
+
+
+def test_screening_changes_no_step_of_cmaes_and_skips_most_full_evaluations(tmp_path):
+    """CMA-ES's update reads its better half by rank: telling the others a bound leaves every
+    step as it was, so the screened run ends where the plain one does, with fewer complete
+    evaluations; each candidate it completed scored what the plain run's did."""
+    with RunStore(tmp_path / "runs.db") as store:
+        plain_problem, screened_problem = TwoPartSphere(), TwoPartSphere()
+        plain = _run(store, plain_problem, screen=False)
+        screened = _run(store, screened_problem, screen=True)
+        assert screened.best_fitness == plain.best_fitness
+        assert np.array_equal(screened.best_x, plain.best_x)
+        state = store.run(screened.run_id).checkpoint["state"]
+        assert state == store.run(plain.run_id).checkpoint["state"]
+        rows = list(store.evaluations(screened.run_id))
+        plain_rows = {e.index: e for e in store.evaluations(plain.run_id)}
+        statuses = [e.status for e in rows]
+        assert statuses.count("screened") == POPULATION * 12 - screened_problem.completed
+        assert POPULATION * 12 // 2 <= screened_problem.completed < POPULATION * 12 * 0.8
+        for e in rows:
+            if e.status == "ok":
+                assert e.fitness == plain_rows[e.index].fitness
+            else:
+                assert e.status == "screened" and e.fitness is None
+                assert e.metrics["screen_bound"] <= plain_rows[e.index].fitness
+        assert store.evaluation_counts(screened.run_id) == (POPULATION * 12, 0)
+
+
+def test_a_screened_candidate_ranks_below_the_selected_ones_of_its_batch(tmp_path):
+    with RunStore(tmp_path / "runs.db") as store:
+        result = _run(store, TwoPartSphere(), screen=True)
+        rows = list(store.evaluations(result.run_id))
+        selected = POPULATION // 2
+        for first in range(0, len(rows), POPULATION):
+            batch = rows[first : first + POPULATION]
+            full = sorted(e.fitness for e in batch if e.status == "ok")
+            bounds = [e.metrics["screen_bound"] for e in batch if e.status == "screened"]
+            assert len(full) >= selected
+            assert all(bound > full[selected - 1] for bound in bounds)
+
+
+def test_same_seed_same_screened_run(tmp_path):
+    with RunStore(tmp_path / "runs.db") as store:
+        first = _run(store, TwoPartSphere(), screen=True)
+        second = _run(store, TwoPartSphere(), screen=True)
+        as_stored = [[(e.index, e.status, e.fitness, e.metrics) for e in store.evaluations(r)]
+                     for r in (first.run_id, second.run_id)]  # fmt: skip
+        assert as_stored[0] == as_stored[1]
+
+
+def test_an_interrupted_screened_run_resumes_to_the_same_end(tmp_path):
+    with RunStore(tmp_path / "runs.db") as store:
+        whole = _run(store, TwoPartSphere(), screen=True)
+        with pytest.raises(KeyboardInterrupt):
+            _run(store, TwoPartSphere(interrupt_at=100), screen=True)
+        stopped = store.runs()[-1]
+        assert stopped.status == "interrupted"
+        kept = [e.status for e in store.evaluations(stopped.id)]
+        assert kept.count("ok") == 99  # every completed evaluation was stored as it finished
+        resumed = resume(stopped.id, store, registry().optimizer("cmaes"), _info(TwoPartSphere()))
+        assert resumed.best_fitness == whole.best_fitness
+        assert (store.run(stopped.id).checkpoint["state"]
+                == store.run(whole.run_id).checkpoint["state"])  # fmt: skip
+
+
+@pytest.mark.parametrize(
+    ("optimizer", "settings", "says"),
+    [
+        ("hs", {}, "reads every candidate's fitness"),
+        ("cmaes", {"batch": 5}, "leave --batch out or give 24"),
+        ("cmaes", {"resample": 2}, "one evaluation per candidate"),
+        ("cmaes", {"mode": "async"}, "in sync mode"),
+    ],
+)
+def test_screening_refuses_what_it_cannot_rank(tmp_path, optimizer, settings, says):
+    with RunStore(tmp_path / "runs.db") as store, pytest.raises(ConfigError, match=says):
+        _run(store, TwoPartSphere(), screen=True, optimizer=optimizer, **settings)
+    assert not RunStore(tmp_path / "runs.db").runs()
+
+
+def test_the_cli_refuses_screening_a_problem_without_a_bound_in_one_line(tmp_path):
+    db = str(tmp_path / "runs.db")
+    for problem, setting in (("sphere", ()), ("nao-walk", ("--set", "backend=mujoco+ode"))):
+        result = CliRunner().invoke(
+            main, ["run", "-o", "cmaes", "-p", problem, "--screen", "--budget", "50", *setting,
+                   "--db", db],
+        )  # fmt: skip
+        assert result.exit_code == 2, result.output
+        assert "no cheaper bound to screen with" in result.output
+        assert "Traceback" not in result.output and len(result.output.strip().splitlines()) == 1
+
+
+WALK = {"backend": "mujoco+pybullet+ode", "controller": "balanced", "engine_score": "worst",
+        "engine_cap": 6.0, "noise": 0.1, "fitness": "progress", "flight_penalty": 50.0,
+        "worlds": "pushes", "duration": 10.0}  # fmt: skip
+
+
+def test_nao_walk_screens_on_the_faster_engines_and_completes_to_its_full_evaluation():
+    """The screen walks MuJoCo and ODE (not PyBullet); completing it gives evaluate's very
+    Evaluation, and its fitness is never better than the screen's."""
+    info = registry().problem("nao-walk")
+    problem = info.factory(**info.checked_params(WALK))
+    walking = info.stored_candidates()["balanced_walk"].x  # a gait that walks on all three
+    falling = problem.space.sample(np.random.default_rng(3), 1)[0]
+    try:
+        assert problem.screens and problem.screen_engines == ("mujoco", "ode")
+        for seed, x in enumerate((walking, falling)):
+            full = problem.evaluate(x, seed)
+            screened = problem.screen(x, seed)
+            assert not any(name.endswith("@pybullet") for name in screened.metrics)
+            assert screened.fitness >= full.fitness
+            assert screened.fitness == min(screened.metrics["fitness@mujoco"],
+                                           screened.metrics["fitness@ode"])  # fmt: skip
+            completed = problem.complete(x, seed, screened)
+            assert completed == full
+    finally:
+        problem.close()
+
+
+@pytest.mark.parametrize(
+    ("setting", "says"),
+    [("screen_engines=mujoco+pybullet+ode", "not all of them"),
+     ("screen_engines=bullet", "some of the backend's engines")],
+)  # fmt: skip
+def test_nao_walk_refuses_screen_engines_that_are_not_a_part_of_the_backend(setting, says):
+    info = registry().problem("nao-walk")
+    name, value = setting.split("=")
+    with pytest.raises(ConfigError, match=says):
+        info.checked_params({**WALK, name: value})
+
+
+def test_a_screened_nao_walk_run_is_the_same_on_one_worker_and_two(tmp_path):
+    """Where the cut falls depends on the scores alone: two workers (which complete a
+    candidate ahead while the other is decided) tell CMA-ES what one worker does."""
+    db = str(tmp_path / "runs.db")
+    given = [arg for name, value in WALK.items() for arg in ("--set", f"{name}={value}")]
+    for workers in ("1", "2"):
+        result = CliRunner().invoke(
+            main, ["run", "-o", "cmaes", "-p", "nao-walk", "--screen", "--budget", "24",
+                   "--seed", "4", "--set", "population=8", *given, "--workers", workers,
+                   "--db", db],
+        )  # fmt: skip
+        assert result.exit_code == 0, result.output
+    with RunStore(db) as store:
+        one, two = store.runs()
+        assert one.checkpoint["state"] == two.checkpoint["state"]
+        assert one.settings["screen"] and two.settings["screen"]
+        for a, b in zip(store.evaluations(one.id), store.evaluations(two.id), strict=True):
+            assert a.status == b.status or "screened" in (a.status, b.status)
+            if a.status == b.status == "ok":
+                assert a.fitness == b.fitness
+        statuses = [e.status for e in store.evaluations(one.id)]
+        assert statuses.count("screened") > 0 and statuses.count("ok") >= 3 * 4
+
+
+def test_show_and_history_count_screened_evaluations_apart_from_failed_ones(tmp_path):
+    """A screened evaluation has no fitness but did not fail: the figures are the completed
+    ones', and the screened are counted on their own."""
+    db = tmp_path / "runs.db"
+    with RunStore(db) as store:
+        result = _run(store, TwoPartSphere(), screen=True, budget=POPULATION * 4)
+        statuses = [e.status for e in store.evaluations(result.run_id)]
+    screened, window = statuses.count("screened"), statuses[-POPULATION:].count("screened")
+    assert 0 < window < POPULATION
+    shown = CliRunner().invoke(main, ["show", str(result.run_id), "--recent", str(POPULATION),
+                                      "--db", str(db)])  # fmt: skip
+    assert shown.exit_code == 0, shown.output
+    assert f"{window} screened, the figures are the other {POPULATION - window}" in shown.output
+    assert "failed" not in shown.output.split("last")[-1]
+    history = CliRunner().invoke(main, ["history", str(result.run_id), "--window", "96",
+                                        "--format", "json", "--db", str(db)])  # fmt: skip
+    assert history.exit_code == 0, history.output
+    (row,) = json.loads(history.output)
+    assert (row["failed"], row["screened"]) == (0, screened)
+
+
+@pytest.mark.parametrize("executor", ["process", "dask"])
+def test_a_screened_run_tells_the_same_on_worker_processes_and_dask(tmp_path, executor):
+    """Screens and completes of one candidate are two tasks (on Dask two keys): on 2 local
+    processes and a 2-worker LocalCluster the run tells CMA-ES what a serial one does."""
+    plugins = registry()
+    spec = RunSpec("cmaes", "nao-walk", 24, 9, optimizer_params={"population": 8},
+                   problem_params={"duration": 3.0, "lock": 1.0, "backend": "mujoco+pybullet"},
+                   settings=RunSettings(screen=True))  # fmt: skip
+    states = []
+    for pool in (None, plugins.executor(executor).factory(2, None)):
+        with RunStore(tmp_path / f"{executor}-{pool is None}.db") as store:
+            result = run(spec, plugins.optimizer("cmaes"), plugins.problem("nao-walk"), store,
+                         None, pool)  # fmt: skip
+            rows = {e.index: (e.status, e.fitness) for e in store.evaluations(result.run_id)}
+            states.append((store.run(result.run_id).checkpoint["state"], rows))
+    (serial_state, serial_rows), (state, rows) = states
+    assert state == serial_state
+    assert "screened" in {status for status, _ in serial_rows.values()}
+    for index, (status, fitness) in rows.items():
+        if status == serial_rows[index][0] == "ok":
+            assert fitness == serial_rows[index][1]
