@@ -277,13 +277,13 @@ def _check_screening(
     if not problem.screens:
         raise ConfigError(
             f"problem {problem_name!r} with these settings has no cheaper bound to screen "
-            "with; run without --screen (nao-walk screens with several engines and "
-            "engine_score=worst)"
+            "with (its docs say which settings give one); run without --screen"
         )
     if optimizer.selected is None:
         raise ConfigError(
             f"optimizer {optimizer_name!r} reads every candidate's fitness, so none can be "
-            "left screened; --screen needs one whose update reads only its best ranks (cmaes)"
+            "left screened; --screen needs one whose update reads only its best ranks, "
+            "such as cmaes"
         )
     if spec.settings.batch not in (0, optimizer.batch_size):
         raise ConfigError(
@@ -645,7 +645,8 @@ class _Session:
             key=lambda c: (self.sign * screened[c.number].fitness, c.number),
         )
         bounds = [self.sign * screened[c.number].fitness for c in order]
-        selected = self.optimizer.selected or len(order)
+        selected = self.optimizer.selected
+        assert selected is not None, "_check_screening refuses an optimizer without one"
         done: dict[int, Outcome] = {}
         in_flight: dict[Future, _Candidate] = {}
         decided: list[float] = []  # the scores of order[:len(decided)], all completed
