@@ -633,13 +633,10 @@ class _Session:
         so a run is the same for any number of workers; those started ahead of the cut
         (one per idle worker) are stored complete, and told their bound like the rest."""
         reused = self._reused_complete(candidates)
-        by_number = {c.number: c for c in candidates}
-        screened: dict[int, Outcome] = {}
-        for future, candidate in self._submit_phase(executor, candidates, "screen").items():
-            screened[candidate.number] = future.result()
-        for number, outcome in screened.items():
-            if outcome.fitness is None:  # a failed screen fails the candidate
-                self._record(by_number[number], outcome)
+        screened = self._screens(executor, candidates)
+        for candidate in candidates:
+            if screened[candidate.number].fitness is None:  # a failed screen fails it
+                self._record(candidate, screened[candidate.number])
         order = sorted(
             (c for c in candidates if screened[c.number].fitness is not None),
             key=lambda c: (self.sign * screened[c.number].fitness, c.number),
@@ -652,11 +649,21 @@ class _Session:
         decided: list[float] = []  # the scores of order[:len(decided)], all completed
         ahead = 0  # order[:ahead] are started (or reused)
         cut = len(order)
+
+        def ranked_out(position: int) -> bool:
+            """``selected`` decided candidates beat order[position]'s bound already."""
+            return sum(score < bounds[position] for score in decided) >= selected
+
+        def finish(future: Future) -> None:
+            """Store a complete phase's outcome at once, its wall time counting the screen's."""
+            candidate = in_flight.pop(future)
+            outcome = future.result()
+            screen_time = screened[candidate.number].wall_time
+            done[candidate.number] = replace(outcome, wall_time=outcome.wall_time + screen_time)
+            self._record(candidate, done[candidate.number])
+
         while len(decided) < cut:
-            while (
-                len(in_flight) < executor.workers and ahead < cut
-                and sum(score < bounds[ahead] for score in decided) < selected
-            ):  # fmt: skip
+            while len(in_flight) < executor.workers and ahead < cut and not ranked_out(ahead):
                 candidate = order[ahead]
                 ahead += 1
                 if candidate.number in reused:
@@ -668,7 +675,7 @@ class _Session:
                 in_flight[executor.submit(task)] = candidate
             while len(decided) < cut:
                 position = len(decided)
-                if sum(score < bounds[position] for score in decided) >= selected:
+                if ranked_out(position):
                     cut = position
                 elif order[position].number in done:
                     decided.append(self._told_score(done[order[position].number]))
@@ -678,11 +685,9 @@ class _Session:
                 assert in_flight, "a candidate still to decide is being completed"
                 finished, _ = wait(list(in_flight), return_when=FIRST_COMPLETED)
                 for future in finished:
-                    candidate = in_flight.pop(future)
-                    done[candidate.number] = self._completed(candidate, future.result(), screened)
+                    finish(future)
         for future in as_completed(list(in_flight)):  # started ahead of the cut: kept
-            candidate = in_flight[future]
-            done[candidate.number] = self._completed(candidate, future.result(), screened)
+            finish(future)
         for candidate in order[cut:]:
             screen = screened[candidate.number]
             candidate.bound = screen.fitness
@@ -703,21 +708,10 @@ class _Session:
                 reused[candidate.number] = _outcome_of(stored)
         return reused
 
-    def _submit_phase(
-        self, executor: Executor, candidates: list[_Candidate], phase: str
-    ) -> dict[Future, _Candidate]:
-        """Start one phase of every candidate's evaluation and wait for them all."""
-        futures = {executor.submit(self._task(c, c.number, phase)): c for c in candidates}
-        wait(list(futures))
-        return futures
-
-    def _completed(
-        self, candidate: _Candidate, outcome: Outcome, screened: dict[int, Outcome]
-    ) -> Outcome:
-        """A complete phase's outcome, stored at once, its wall time counting the screen's."""
-        outcome = replace(outcome, wall_time=outcome.wall_time + screened[outcome.index].wall_time)
-        self._record(candidate, outcome)
-        return outcome
+    def _screens(self, executor: Executor, candidates: list[_Candidate]) -> dict[int, Outcome]:
+        """Every candidate's screen, by candidate number (all of them finished)."""
+        futures = {executor.submit(self._task(c, c.number, "screen")): c for c in candidates}
+        return {candidate.number: future.result() for future, candidate in futures.items()}
 
     def _told_score(self, outcome: Outcome) -> float:
         """The (minimizing) score of a completed outcome: +inf where it failed."""

@@ -50,9 +50,10 @@ def recent_figures(evaluations: Iterable[EvaluationRecord]) -> RecentFigures | N
     window = list(evaluations)
     if not window:
         return None
-    fitnesses = [e.fitness for e in window if e.fitness is not None]
+    whole = completed(window)
+    fitnesses = [e.fitness for e in whole if e.fitness is not None]
     values: dict[str, list[float]] = {}
-    for evaluation in completed(window):
+    for evaluation in whole:
         for name, value in evaluation.metrics.items():
             values.setdefault(name, []).append(float(value))
     metrics = tuple(_metric(name, found) for name, found in values.items())
@@ -63,7 +64,7 @@ def recent_figures(evaluations: Iterable[EvaluationRecord]) -> RecentFigures | N
         len(fitnesses),
         fitness_quartiles(fitnesses),
         metrics,
-        len(window) - len(completed(window)),
+        len(window) - len(whole),
     )
 
 

@@ -94,6 +94,9 @@ PUSH_BEFORE_END_S = 3.0
 CELL_SEPARATOR = ","
 #: How several engines' fitnesses make one: the worst of them, or their mean.
 ENGINE_SCORES = ("worst", "mean")
+#: The engine a screen leaves out unless screen_engines names others: the slowest, about 4x
+#: MuJoCo's and ODE's time per walk (benchmarks/episode_throughput.py).
+SLOWEST_ENGINE = "pybullet"
 #: With several engines, each engine's fitness is a metric too: this name, then @ENGINE.
 FITNESS_METRIC = "fitness"
 
@@ -329,10 +332,9 @@ class NaoWalk(Problem):
     def _screen_engines(self, given: str) -> tuple[str, ...]:
         """The engines a screen walks on, in the backend's order (none: no screen)."""
         if not given:
-            slowest = "pybullet"
-            if len(self.engines) < 2 or slowest not in self.engines:
+            if len(self.engines) < 2 or SLOWEST_ENGINE not in self.engines:
                 return ()
-            return tuple(engine for engine in self.engines if engine != slowest)
+            return tuple(engine for engine in self.engines if engine != SLOWEST_ENGINE)
         named = engine_names(given)
         if not set(named) < set(self.engines):
             raise ConfigError(
