@@ -25,7 +25,7 @@ from metaopt.params import resolve
 from metaopt.plugins import registry
 from metaopt.reporting.display import RichProgress
 from metaopt.run_loop import RunSpec, run
-from metaopt.storage.run_store import RunStore
+from metaopt.storage.run_store import EvaluationCounts, RunStore
 
 OPTIMIZERS = ("hs", "ga", "random")
 
@@ -74,7 +74,7 @@ def run_loop_cost(name: str, dim: int, budget: int) -> float:
                 result = run(RunSpec(name, "sum", budget, 1), registry().optimizer(name), info,
                              store, progress)  # fmt: skip
             elapsed = time.perf_counter() - tick
-            assert store.evaluation_counts(result.run_id) == (budget, 0)
+            assert store.evaluation_counts(result.run_id) == EvaluationCounts(budget, 0, 0)
     return elapsed / budget * 1e6
 
 

@@ -4,8 +4,11 @@
 run`` (seeds, failed evaluations, budget, target) on a plain Python function and returns a Result
 with the best point, its fitness and the history of every evaluation; with ``store=PATH`` the run
 is also kept in that run store, where ``metaopt runs``, ``show`` and ``report`` find it.
-``create_optimizer(name, bounds, seed=..., budget=...)`` builds a registered optimizer with its
-declared defaults filled in and validated, for ask/tell loops of one's own.
+With ``bound=g``, a cheap function that f(x) can never beat, each generation is screened
+(``metaopt run --screen``): f runs only where g says the candidate can still rank among those
+the optimizer's update reads. ``create_optimizer(name, bounds, seed=..., budget=...)`` builds a
+registered optimizer with its declared defaults filled in and validated, for ask/tell loops of
+one's own.
 """
 
 from __future__ import annotations
@@ -36,12 +39,14 @@ IN_MEMORY = ":memory:"
 
 @dataclass(frozen=True)
 class History:
-    """Every evaluation of a run, in order: the candidate, its fitness (NaN where it failed)
-    and the best fitness so far."""
+    """Every evaluation of a run, in order: the candidate, its fitness (NaN where it failed or
+    was screened) and the best fitness so far."""
 
     x: np.ndarray  #: shape (evaluations, dim)
     fitness: np.ndarray
     best: np.ndarray
+    #: True where only the bound ran (``bound=``): f was not called, fitness is NaN
+    screened: np.ndarray
 
 
 @dataclass(frozen=True)
@@ -52,6 +57,7 @@ class Result:
     fitness: float  #: f(x)
     evaluations: int  #: evaluations made (fewer than the budget when the target was reached)
     failed: int  #: evaluations where f raised or returned NaN or an infinity
+    screened: int  #: evaluations where only the bound ran (``bound=``), f was not called
     history: History
     seed: int  #: the run's seed (drawn at random when none was given)
     run_id: int | None  #: the run's id in the store, None when the run was not stored
@@ -99,13 +105,29 @@ def create_optimizer(
 
 
 class _FunctionProblem(Problem):
-    """A Python function of x (a 1-D array) as a Problem; the evaluation seed is not used."""
+    """A Python function of x (a 1-D array) as a Problem, screened by ``bound`` where one is
+    given; the evaluation seed is not used."""
 
-    def __init__(self, f: Callable[[np.ndarray], float], space: Space, sense: Sense) -> None:
-        self.f, self.space, self.sense = f, space, sense
+    def __init__(
+        self,
+        f: Callable[[np.ndarray], float],
+        space: Space,
+        sense: Sense,
+        bound: Callable[[np.ndarray], float] | None = None,
+    ) -> None:
+        self.f, self.space, self.sense, self.bound = f, space, sense, bound
+
+    @property
+    def screens(self) -> bool:
+        """With a bound: minimize's and maximize's ``bound=`` screens each generation."""
+        return self.bound is not None
 
     def evaluate(self, x: np.ndarray, seed: int) -> Evaluation:
         return Evaluation(float(self.f(x)))
+
+    def screen(self, x: np.ndarray, seed: int) -> Evaluation:
+        assert self.bound is not None, "screened only with a bound (screens)"
+        return Evaluation(float(self.bound(x)))
 
 
 def minimize(
@@ -120,6 +142,7 @@ def minimize(
     store: str | Path | None = None,
     start: Sequence[float] | Sequence[Sequence[float]] | None = None,
     start_spread: float = 0.05,
+    bound: Callable[[np.ndarray], float] | None = None,
     **params: Any,
 ) -> Result:
     """Minimize f(x) over the box ``bounds`` with ``budget`` evaluations of f.
@@ -133,9 +156,17 @@ def minimize(
     goes on (RunFailed, naming the first error, when the first ten or all of them fail).
     With ``store`` the run is kept in that run store under the problem name
     ``python:<function name>``.
+
+    ``bound`` (a function of x never above f(x), cheaper to compute) screens every generation:
+    f runs best bound first, and only on candidates that can still rank among those the
+    optimizer's update reads; the others are told their bound, which changes none of its steps
+    (optimizers with ``selected``, such as cmaes; docs/scaling.md). RunFailed if f(x) ever
+    comes out below bound(x).
     """
-    settings = _settings(target, max_time, start, start_spread)
-    return _optimize(f, bounds, optimizer, Sense.MINIMIZE, budget, seed, settings, store, params)
+    settings = _settings(target, max_time, start, start_spread, bound)
+    return _optimize(
+        f, bounds, optimizer, Sense.MINIMIZE, budget, seed, settings, store, params, bound
+    )
 
 
 def _settings(
@@ -143,10 +174,15 @@ def _settings(
     max_time: float | None,
     start: Sequence[float] | Sequence[Sequence[float]] | None,
     start_spread: float,
+    bound: Callable[[np.ndarray], float] | None,
 ) -> RunSettings:
-    """minimize's and maximize's stopping target, time limit and warm start as run settings."""
+    """minimize's and maximize's stopping target, time limit, warm start and screening as run
+    settings."""
     points = None if start is None else np.atleast_2d(np.asarray(start, dtype=float)).tolist()
-    return RunSettings(target=target, max_time=max_time, start=points, start_spread=start_spread)
+    return RunSettings(
+        target=target, max_time=max_time, start=points, start_spread=start_spread,
+        screen=bound is not None,
+    )  # fmt: skip
 
 
 def maximize(
@@ -161,11 +197,15 @@ def maximize(
     store: str | Path | None = None,
     start: Sequence[float] | Sequence[Sequence[float]] | None = None,
     start_spread: float = 0.05,
+    bound: Callable[[np.ndarray], float] | None = None,
     **params: Any,
 ) -> Result:
-    """As minimize, for the largest f(x); ``target`` stops the run at or above it."""
-    settings = _settings(target, max_time, start, start_spread)
-    return _optimize(f, bounds, optimizer, Sense.MAXIMIZE, budget, seed, settings, store, params)
+    """As minimize, for the largest f(x); ``target`` stops the run at or above it, and
+    ``bound`` is never below f(x)."""
+    settings = _settings(target, max_time, start, start_spread, bound)
+    return _optimize(
+        f, bounds, optimizer, Sense.MAXIMIZE, budget, seed, settings, store, params, bound
+    )
 
 
 def _optimize(
@@ -178,10 +218,13 @@ def _optimize(
     settings: RunSettings,
     store: str | Path | None,
     params: dict[str, Any],
+    bound: Callable[[np.ndarray], float] | None,
 ) -> Result:
     if not callable(f):
         raise ConfigError(f"f must be a function of x, got {type(f).__name__}")
-    problem = _FunctionProblem(f, as_space(bounds), sense)
+    if bound is not None and not callable(bound):
+        raise ConfigError(f"bound must be a function of x or None, got {type(bound).__name__}")
+    problem = _FunctionProblem(f, as_space(bounds), sense, bound)
     name = f"python:{getattr(f, '__qualname__', type(f).__name__)}"
     problem_info = ProblemInfo(name, "a Python function", factory=lambda: problem)
     spec = RunSpec(
@@ -200,12 +243,14 @@ def _optimize(
         x=np.array([r.x for r in records]),
         fitness=fitness,
         best=convergence(fitness, sense is Sense.MAXIMIZE).best,
+        screened=np.array([r.status == "screened" for r in records], dtype=bool),
     )
     return Result(
         x=result.best_x,
         fitness=float(result.best_fitness),
         evaluations=result.evaluations,
         failed=result.failed,
+        screened=result.screened,
         history=history,
         seed=spec.seed,
         run_id=None if store is None else result.run_id,

@@ -61,6 +61,10 @@ class Progress(Protocol):
         """``done`` evaluations are finished; ``best`` is the best fitness so far."""
 
 
+#: how the message of a run that stopped at its max time begins (it can be resumed for more)
+MAX_TIME_STOP = "stopped at its max time"
+
+
 @dataclass
 class RunSettings:
     """How evaluations are scheduled; stored with the run so a resume continues alike."""
@@ -160,6 +164,8 @@ class RunResult:
     status: str
     evaluations: int
     failed: int
+    #: evaluations of which only the screen ran (``RunSettings.screen``), told their bound
+    screened: int
     best_fitness: float | None
     best_x: np.ndarray | None
     best_metrics: dict[str, float]
@@ -282,7 +288,7 @@ def _check_screening(
     if optimizer.selected is None:
         raise ConfigError(
             f"optimizer {optimizer_name!r} reads every candidate's fitness, so none can be "
-            "left screened; --screen needs one whose update reads only its best ranks, "
+            "left screened; screening needs one whose update reads only its best ranks, "
             "such as cmaes"
         )
     if spec.settings.batch not in (0, optimizer.batch_size):
@@ -317,15 +323,20 @@ def resume(
     problem_info: ProblemInfo,
     progress: Progress | None = None,
     executor: Executor | None = None,
+    max_time: float | None = None,
 ) -> RunResult:
-    """Continue a stored run that did not finish, from its last checkpoint.
+    """Continue a stored run that did not finish, or that stopped at its max time with budget
+    left, from its last checkpoint; ``max_time`` replaces the stored one (stored with the run).
 
     In sync mode evaluations stored after the checkpoint are reused, not recomputed, so the
-    resumed run ends exactly where an uninterrupted one would.
+    resumed run ends exactly where an uninterrupted one would (one given the time at once).
     """
     record = store.run(run_id)
-    if record.status == "finished":
+    if record.status == "finished" and not (record.message or "").startswith(MAX_TIME_STOP):
         raise ConfigError(f"run {record.id} already finished; nothing to resume")
+    if max_time is not None:
+        record.settings = {**record.settings, "max_time": max_time}
+        RunSettings(**record.settings).check(record.budget)
     # A parameter a plugin declared after the run was stored takes its default, as a replay's do.
     optimizer_params = resolve(optimizer_info.params, record.optimizer_params, optimizer_info.name)
     problem_params = resolve(problem_info.params, record.problem_params, problem_info.name)
@@ -345,7 +356,7 @@ def resume(
         if checkpoint["state"] is not None:
             optimizer.load_state_dict(checkpoint["state"])
         store.claim(record.id)  # refused while another live process runs it
-        store.mark_running(record.id)
+        store.mark_running(record.id, record.settings)
         session = _Session(record.id, spec, optimizer, problem, problem_info, store, problem_params)
         session.restore(record, checkpoint)
         with adopt_problem(problem_info.factory, problem_params, problem):
@@ -402,7 +413,7 @@ class _Session:
         self.total = (spec.budget // self.resample) * self.resample
         self.told_below = 0  # every candidate whose evaluations all lie below this is told
         self.told_extra: set[int] = set()  # candidates told beyond told_below (async)
-        self.stored = self.failed = 0
+        self.stored = self.failed = self.screened = 0
         self.first_error: str | None = None
         self.best_score = math.inf
         target = self.settings.target
@@ -433,6 +444,7 @@ class _Session:
         for evaluation in self.store.evaluations(record.id):
             self.stored += 1
             self.failed += evaluation.status == "failed"
+            self.screened += evaluation.status == "screened"
             by_candidate.setdefault(evaluation.candidate, []).append(evaluation)
         for number, evaluations in by_candidate.items():
             if len(evaluations) == self.resample and self._was_told(number):
@@ -441,6 +453,8 @@ class _Session:
             elif not self._was_told(number):
                 self.reusable.update((e.index, e) for e in evaluations)
         self.stored -= len(self.reusable)  # counted again when reused
+        # a resumed batch is screened again (_reused_complete): its screens are counted then
+        self.screened -= sum(e.status == "screened" for e in self.reusable.values())
 
     def _was_told(self, number: int) -> bool:
         return (number + 1) * self.resample <= self.told_below or number in self.told_extra
@@ -467,7 +481,7 @@ class _Session:
             status = "finished"
             if self.stored < self.total and self.out_of_time and not self.target_met:
                 message = (
-                    f"stopped at its max time of {self.settings.max_time:g} s after "
+                    f"{MAX_TIME_STOP} of {self.settings.max_time:g} s after "
                     f"{self.stored} of {self.total} evaluations"
                 )
         except RunFailed as error:
@@ -661,18 +675,13 @@ class _Session:
             screen_time = screened[candidate.number].wall_time
             done[candidate.number] = replace(outcome, wall_time=outcome.wall_time + screen_time)
             self._record(candidate, done[candidate.number])
+            self._check_bound(candidate, screened[candidate.number], outcome)
 
-        while len(decided) < cut:
-            while len(in_flight) < executor.workers and ahead < cut and not ranked_out(ahead):
-                candidate = order[ahead]
-                ahead += 1
-                if candidate.number in reused:
-                    done[candidate.number] = candidate.outcomes[0] = reused[candidate.number]
-                    self.stored += 1
-                    continue
-                screen = _evaluation_of(screened[candidate.number])
-                task = self._task(candidate, candidate.number, "complete", screen)
-                in_flight[executor.submit(task)] = candidate
+        def decide() -> None:
+            """Decide the candidates in order whose outcome is known; cut at the first that
+            is ranked out. Called after every outcome, so that no complete starts on stale
+            ranks (one that would, on a resumed batch or after a finish, is waste)."""
+            nonlocal cut
             while len(decided) < cut:
                 position = len(decided)
                 if ranked_out(position):
@@ -681,11 +690,26 @@ class _Session:
                     decided.append(self._told_score(done[order[position].number]))
                 else:
                     break
+
+        while len(decided) < cut:
+            while len(in_flight) < executor.workers and ahead < cut and not ranked_out(ahead):
+                candidate = order[ahead]
+                ahead += 1
+                if candidate.number in reused:
+                    done[candidate.number] = candidate.outcomes[0] = reused[candidate.number]
+                    self.stored += 1
+                    decide()
+                    continue
+                screen = _evaluation_of(screened[candidate.number])
+                task = self._task(candidate, candidate.number, "complete", screen)
+                in_flight[executor.submit(task)] = candidate
+            decide()
             if len(decided) < cut:
                 assert in_flight, "a candidate still to decide is being completed"
                 finished, _ = wait(list(in_flight), return_when=FIRST_COMPLETED)
                 for future in finished:
                     finish(future)
+                decide()
         for future in as_completed(list(in_flight)):  # started ahead of the cut: kept
             finish(future)
         for candidate in order[cut:]:
@@ -694,6 +718,19 @@ class _Session:
             if candidate.number not in done:
                 bound = {**screen.metrics, SCREEN_BOUND: screen.fitness}
                 self._record(candidate, replace(screen, screened=True, fitness=None, metrics=bound))
+
+    def _check_bound(self, candidate: _Candidate, screen: Outcome, complete: Outcome) -> None:
+        """RunFailed where a full fitness beat its screen's: the screen is then no bound, and
+        the candidates it cut might have ranked among the selected ones."""
+        if complete.fitness is not None and (
+            self.sign * complete.fitness < self.sign * screen.fitness
+        ):
+            raise RunFailed(
+                f"run {self.run_id}: candidate {candidate.number}'s fitness "
+                f"{complete.fitness:g} is better than its screen's {screen.fitness:g}, so the "
+                f"problem's screen is no bound on its fitness (the full fitness must never be "
+                "better); fix the screen or run without screening"
+            )
 
     def _reused_complete(self, candidates: list[_Candidate]) -> dict[int, Outcome]:
         """A resumed batch's candidates stored complete (or failed) before the interruption,
@@ -733,6 +770,7 @@ class _Session:
         candidate.outcomes[outcome.index % self.resample] = outcome
         self.stored += 1
         self.failed += outcome.error is not None
+        self.screened += outcome.screened
         self.first_error = self.first_error or outcome.error
         self.store.add_evaluation(
             self.run_id, outcome.index, candidate.number, candidate.x, outcome.fitness,
@@ -798,6 +836,7 @@ class _Session:
             status=status,
             evaluations=self.stored,
             failed=self.failed,
+            screened=self.screened,
             best_fitness=fitness,
             best_x=x,
             best_metrics=metrics,

@@ -111,3 +111,56 @@ def test_bad_input_is_one_clear_metaopt_error(name, bounds, params, message):
         metaopt.create_optimizer(name, bounds, **params)
     with pytest.raises(metaopt.ConfigError, match="f must be a function of x"):
         metaopt.minimize("f", [(0, 1)])
+
+
+def _two_part(x: np.ndarray) -> float:
+    """A cheap part (the sphere, its bound) plus a penalty past 1, never negative."""
+    return sphere(x) + float(np.sum(np.maximum(x - 1.0, 0.0)))
+
+
+def test_a_bound_screens_cmaes_without_changing_its_run_and_calls_f_less():
+    calls = []
+
+    def counted(x: np.ndarray) -> float:
+        calls.append(x)
+        return _two_part(x)
+
+    bounds, settings = [(-2.0, 2.0)] * 4, {"budget": 480, "seed": 3, "population": 16}
+    plain = metaopt.minimize(_two_part, bounds, "cmaes", **settings)
+    screened = metaopt.minimize(counted, bounds, "cmaes", bound=sphere, **settings)
+    assert screened.fitness == plain.fitness and np.array_equal(screened.x, plain.x)
+    np.testing.assert_array_equal(screened.history.x, plain.history.x)  # the same asks
+    assert (plain.screened, plain.history.screened.any()) == (0, False)
+    assert 480 // 4 < screened.screened == screened.history.screened.sum() < 480 // 2 + 1
+    assert len(calls) == 480 - screened.screened and screened.failed == 0
+    shown = screened.history.fitness
+    np.testing.assert_array_equal(np.isnan(shown), screened.history.screened)
+    kept = ~screened.history.screened
+    np.testing.assert_array_equal(shown[kept], plain.history.fitness[kept])
+
+
+def test_maximize_screens_with_an_upper_bound():
+    def score(x: np.ndarray) -> float:
+        return -_two_part(x)
+
+    def ceiling(x: np.ndarray) -> float:
+        return -sphere(x)
+
+    plain = metaopt.maximize(score, [(-2.0, 2.0)] * 3, "cmaes", budget=240, seed=5)
+    screened = metaopt.maximize(score, [(-2.0, 2.0)] * 3, "cmaes", budget=240, seed=5,
+                                bound=ceiling)  # fmt: skip
+    assert screened.fitness == plain.fitness and screened.screened > 0
+
+
+def test_a_bound_that_f_beats_stops_the_run_naming_the_candidate():
+    with pytest.raises(metaopt.RunFailed, match=r"candidate \d+'s fitness .* is better than its "
+                       "screen's .* no bound on its fitness"):  # fmt: skip
+        metaopt.minimize(sphere, [(-2.0, 2.0)] * 3, "cmaes", budget=120, seed=1,
+                         bound=lambda x: sphere(x) + 1.0)  # fmt: skip
+
+
+def test_a_bound_needs_an_optimizer_that_reads_only_its_best_ranks():
+    with pytest.raises(metaopt.ConfigError, match="reads every candidate's fitness"):
+        metaopt.minimize(_two_part, [(0.0, 1.0)] * 2, "hs", budget=50, bound=sphere)
+    with pytest.raises(metaopt.ConfigError, match="bound must be a function of x or None"):
+        metaopt.minimize(_two_part, [(0.0, 1.0)] * 2, "cmaes", budget=50, bound=1.0)

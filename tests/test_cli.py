@@ -120,9 +120,16 @@ def test_run_stops_at_the_target_and_refuses_a_non_finite_one(tmp_path):
     assert bad.returncode == 2 and "target must be a finite fitness" in bad.stderr
 
 
+def _untimed_evaluations(run: str, cwd) -> list[dict]:
+    """A run's exported evaluations without their wall time, the one thing timing decides."""
+    exported = json.loads(metaopt_cli("export", run, "--format", "json", cwd=cwd).stdout)
+    return [{k: v for k, v in e.items() if k != "wall_time"} for e in exported["evaluations"]]
+
+
 def test_run_stops_at_its_max_time_having_done_what_a_longer_run_does_first(tmp_path):
     """--max-time ends the run finished, its budget unspent, and says so; its evaluations are
-    the first ones of the same run given more time (sync: the seed and budget decide them)."""
+    the first ones of the same run given more time (sync: the seed and budget decide them),
+    and `metaopt resume --max-time` continues it as that run."""
     for max_time in ("0.8", "1.6"):
         done = metaopt_cli(
             "run", "-o", "hs", "-p", "sphere", "--budget", "10000000", "--seed", "3",
@@ -141,13 +148,14 @@ def test_run_stops_at_its_max_time_having_done_what_a_longer_run_does_first(tmp_
     )
     assert shown[1]["settings"]["max_time"] == 1.6 and shown[1]["wall_time"] < 1.6 + 5
     assert counts[0] % 4 == 0  # the batch in flight finished
-    runs = [
-        [
-            {k: v for k, v in e.items() if k != "wall_time"}  # the one thing timing decides
-            for e in json.loads(
-                metaopt_cli("export", run, "--format", "json", cwd=tmp_path).stdout
-            )["evaluations"]
-        ]
-        for run in ("1", "2")
-    ]
+    runs = [_untimed_evaluations(run, tmp_path) for run in ("1", "2")]
     assert runs[0] == runs[1][: counts[0]]
+    resumed = metaopt_cli("resume", "1", "--max-time", "0.8", cwd=tmp_path, env=BASIC)
+    assert resumed.returncode == 0, resumed.stderr
+    more = json.loads(metaopt_cli("show", "1", "--format", "json", cwd=tmp_path).stdout)
+    assert more["evaluations"] > counts[0] and more["settings"]["max_time"] == 0.8
+    longer = _untimed_evaluations("1", tmp_path)
+    shared = min(len(longer), counts[1])
+    assert longer[:shared] == runs[1][:shared]  # the same run, continued
+    bad = metaopt_cli("resume", "1", "--max-time", "0", cwd=tmp_path, env=BASIC)
+    assert bad.returncode == 2 and len(bad.stderr.strip().splitlines()) == 1

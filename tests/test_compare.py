@@ -31,6 +31,7 @@ from metaopt.problem import Sense
 from metaopt.reporting.result_table import ResultTable
 from metaopt.run_loop import RunInterrupted, RunSettings
 from metaopt.storage.experiment_store import ExperimentStore
+from metaopt.storage.run_store import EvaluationCounts
 from tests.conftest import ROOT, metaopt_cli
 
 SPHERE_FLAGS = ("-o", "hs", "-o", "random", "-p", "sphere", "--seeds", "5", "--budget", "300",
@@ -165,7 +166,7 @@ def test_jobs_run_side_by_side_and_end_as_one_after_another(tmp_path: Path) -> N
     with ExperimentStore(tmp_path / "jobs.db") as store:
         assert _best_fitnesses(store, experiment) == serial
         counts = {store.evaluation_counts(r.id) for r in store.runs()}
-    assert counts == {(150, 0)}
+    assert counts == {EvaluationCounts(150, 0, 0)}
     again = metaopt_cli("compare", *flags, "--format", "csv", cwd=tmp_path)
     skipped = sum(line.endswith(" skipped") for line in again.stderr.splitlines())
     assert again.returncode == 0 and skipped == 6, again.stderr
@@ -482,4 +483,4 @@ def test_ctrl_c_stops_every_job_and_keeps_what_finished(tmp_path: Path, stop: st
     with ExperimentStore(tmp_path / "c.db") as store:
         runs = store.runs()
         assert len(runs) == 2 and {run.status for run in runs} == {"interrupted"}
-        assert all(store.evaluation_counts(run.id)[0] > 0 for run in runs)
+        assert all(store.evaluation_counts(run.id).stored > 0 for run in runs)

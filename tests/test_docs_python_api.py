@@ -35,5 +35,7 @@ def test_the_python_api_page_runs_as_written(walkthrough: Workspace):
     assert (walkthrough.root / "figures" / "convergence.png").stat().st_size > 0
     assert "Traceback" not in listing
 
+    assert "as without the bound: True" in walkthrough.output_of("def costly")
+
     for name in ("hs", "ga"):
         assert f"{name}: best" in walkthrough.output_of("create_optimizer")

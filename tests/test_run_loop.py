@@ -1,6 +1,7 @@
 """The run loop: seeding, storage, sense translation, failures and interruption."""
 
 import json
+import time
 
 import numpy as np
 import pytest
@@ -9,7 +10,7 @@ from metaopt import ConfigError, Evaluation, Problem, ProblemInfo, Sense, Space
 from metaopt.errors import RunFailed
 from metaopt.plugins import registry
 from metaopt.run_loop import RunSettings, RunSpec, resume, run
-from metaopt.storage.run_store import RunStore
+from metaopt.storage.run_store import EvaluationCounts, RunStore
 
 
 def _stored(store: RunStore, run_id: int) -> list[tuple]:
@@ -44,7 +45,7 @@ def test_every_evaluation_is_stored_with_the_run_record(tmp_path):
         assert record.problem_params == {"dim": 10}
         assert {"python", "numpy", "metaopt"} <= set(record.versions)
         assert record.ended_at is not None and record.wall_time > 0
-        assert store.evaluation_counts(result.run_id) == (123, 0)
+        assert store.evaluation_counts(result.run_id) == EvaluationCounts(123, 0, 0)
         assert record.checkpoint["told_below"] == 123 and record.checkpoint["state"]
         assert record.settings["mode"] == "sync"
         fitnesses = [e.fitness for e in store.evaluations(result.run_id)]
@@ -99,7 +100,44 @@ def test_interrupt_keeps_every_finished_evaluation(tmp_path):
             run(spec, registry().optimizer("hs"), _peak_info(interrupt_after=251), store)
         record = store.runs()[-1]
         assert record.status == "interrupted"
-        assert store.evaluation_counts(record.id)[0] == 250
+        assert store.evaluation_counts(record.id).stored == 250
+
+
+class SlowSphere(Problem):
+    """The 2-D sphere at 2 ms an evaluation: a max time of tenths of a second stops it early."""
+
+    def __init__(self) -> None:
+        self.space = Space.from_bounds([-1.0, -1.0], [1.0, 1.0])
+
+    def evaluate(self, x, seed):
+        time.sleep(0.002)
+        return Evaluation(float(np.sum(x**2)))
+
+
+def test_a_run_stopped_at_its_max_time_resumes_with_more_time_to_the_unstopped_runs_end(tmp_path):
+    """Stopped at its max time, a sync run's checkpoint is its last tell: resumed (with the
+    stored max time, then with a new one, which is stored) it ends as the run never stopped."""
+    info, ga = ProblemInfo("slow", "slow sphere", factory=SlowSphere), registry().optimizer("ga")
+    with RunStore(tmp_path / "runs.db") as store:
+        whole = run(RunSpec("ga", "slow", 400, 7), ga, info, store)
+        limited = RunSpec("ga", "slow", 400, 7, settings=RunSettings(max_time=0.2))
+        stopped = run(limited, ga, info, store)
+        assert 0 < stopped.evaluations < 400
+        assert store.run(stopped.run_id).message.startswith("stopped at its max time")
+        again = resume(stopped.run_id, store, ga, info)  # another 0.2 s
+        assert stopped.evaluations < again.evaluations < 400
+        done = resume(stopped.run_id, store, ga, info, max_time=60.0)
+        record = store.run(stopped.run_id)
+        assert (done.evaluations, record.status, record.message) == (400, "finished", None)
+        assert record.settings["max_time"] == 60.0
+        assert done.best_fitness == whole.best_fitness
+        assert _stored(store, stopped.run_id) == _stored(store, whole.run_id)
+        with pytest.raises(ConfigError, match="already finished; nothing to resume"):
+            resume(stopped.run_id, store, ga, info, max_time=60.0)
+        other = run(limited, ga, info, store)
+        with pytest.raises(ConfigError, match="max time must be positive"):
+            resume(other.run_id, store, ga, info, max_time=-1.0)
+        assert store.run(other.run_id).settings["max_time"] == 0.2
 
 
 def test_a_run_stored_before_a_parameter_existed_resumes_with_its_default(tmp_path):

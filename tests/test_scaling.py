@@ -142,11 +142,11 @@ def test_sigterm_stops_cleanly_and_says_how_to_resume(tmp_path):
     assert "Traceback" not in stderr
     with RunStore(db) as store:
         assert store.run(1).status == "interrupted"
-        stored = store.evaluation_counts(1)[0]
+        stored = store.evaluation_counts(1).stored
     assert 30 <= stored < 150
     assert metaopt_cli("resume", "1", "--db", str(db), cwd=tmp_path).returncode == 0
     with RunStore(db) as store:
-        assert store.run(1).status == "finished" and store.evaluation_counts(1)[0] == 150
+        assert store.run(1).status == "finished" and store.evaluation_counts(1).stored == 150
 
 
 @pytest.mark.parametrize("executor", ["process", "dask"])
@@ -196,7 +196,7 @@ def test_two_runs_writing_one_database_at_once_both_complete(tmp_path):
     assert [p.wait(timeout=300) for p in processes] == [0, 0]
     with RunStore(db) as store:
         assert [r.status for r in store.runs()] == ["finished", "finished"]
-        assert [store.evaluation_counts(r.id)[0] for r in store.runs()] == [150, 150]
+        assert [store.evaluation_counts(r.id).stored for r in store.runs()] == [150, 150]
 
 
 def test_unknown_executor_and_misplaced_scheduler(tmp_path):

@@ -10,7 +10,7 @@ from metaopt import ConfigError, Evaluation, Problem, ProblemInfo, Space
 from metaopt.cli import main
 from metaopt.plugins import registry
 from metaopt.run_loop import RunSettings, RunSpec, resume, run
-from metaopt.storage.run_store import RunStore
+from metaopt.storage.run_store import EvaluationCounts, RunStore
 
 POPULATION = 24
 
@@ -79,12 +79,18 @@ def test_screening_changes_no_step_of_cmaes_and_skips_most_full_evaluations(tmp_
             else:
                 assert e.status == "screened" and e.fitness is None
                 assert e.metrics["screen_bound"] <= plain_rows[e.index].fitness
-        assert store.evaluation_counts(screened.run_id) == (POPULATION * 12, 0)
+        left = POPULATION * 12 - screened_problem.completed
+        assert (plain.screened, screened.screened) == (0, left)
+        counts = store.evaluation_counts(screened.run_id)
+        assert counts == EvaluationCounts(POPULATION * 12, 0, left)
 
 
 def test_a_screened_candidate_ranks_below_the_selected_ones_of_its_batch(tmp_path):
+    """Every bound cut lies below the batch's selected scores, and on one worker no candidate
+    is completed that the ones before it (best bound first) had already ranked out."""
+    problem = TwoPartSphere()
     with RunStore(tmp_path / "runs.db") as store:
-        result = _run(store, TwoPartSphere(), screen=True)
+        result = _run(store, problem, screen=True)
         rows = list(store.evaluations(result.run_id))
         selected = POPULATION // 2
         for first in range(0, len(rows), POPULATION):
@@ -93,6 +99,9 @@ def test_a_screened_candidate_ranks_below_the_selected_ones_of_its_batch(tmp_pat
             bounds = [e.metrics["screen_bound"] for e in batch if e.status == "screened"]
             assert len(full) >= selected
             assert all(bound > full[selected - 1] for bound in bounds)
+            completed = sorted((problem._first(e.x), e.fitness) for e in batch if e.status == "ok")
+            for position, (bound, _) in enumerate(completed):
+                assert sum(score < bound for _, score in completed[:position]) < selected
 
 
 def test_same_seed_same_screened_run(tmp_path):
@@ -115,6 +124,9 @@ def test_an_interrupted_screened_run_resumes_to_the_same_end(tmp_path):
         assert kept.count("ok") == 99  # every completed evaluation was stored as it finished
         resumed = resume(stopped.id, store, registry().optimizer("cmaes"), _info(TwoPartSphere()))
         assert resumed.best_fitness == whole.best_fitness
+        assert (resumed.evaluations, resumed.screened) == (whole.evaluations, whole.screened)
+        statuses = [[e.status for e in store.evaluations(r)] for r in (stopped.id, whole.run_id)]
+        assert statuses[0] == statuses[1]  # the same candidates completed, none extra
         assert (store.run(stopped.id).checkpoint["state"]
                 == store.run(whole.run_id).checkpoint["state"])  # fmt: skip
 
@@ -238,6 +250,15 @@ def test_show_and_history_count_screened_evaluations_apart_from_failed_ones(tmp_
     assert shown.exit_code == 0, shown.output
     assert f"{window} screened, the figures are the other {POPULATION - window}" in shown.output
     assert "failed" not in shown.output.split("last")[-1]
+    budget = POPULATION * 4
+    assert f"{budget} of {budget} (0 failed, {screened} screened)" in shown.output
+    for command in (["show", str(result.run_id)], ["runs"]):
+        listed = CliRunner().invoke(main, [*command, "--format", "json", "--db", str(db)])
+        assert listed.exit_code == 0, listed.output
+        document = json.loads(listed.output)
+        record = document[0] if isinstance(document, list) else document
+        counts = (record["evaluations"], record["failed"], record["screened"])
+        assert counts == (budget, 0, screened)
     history = CliRunner().invoke(main, ["history", str(result.run_id), "--window", "96",
                                         "--format", "json", "--db", str(db)])  # fmt: skip
     assert history.exit_code == 0, history.output

@@ -6,7 +6,7 @@ import pytest
 
 from metaopt import StoreError
 from metaopt.storage import run_store as store_module
-from metaopt.storage.run_store import FLUSH_INTERVAL, RunStore
+from metaopt.storage.run_store import FLUSH_INTERVAL, EvaluationCounts, RunStore
 
 
 def _new_run(store: RunStore, settings: dict | None = None) -> int:
@@ -37,7 +37,7 @@ def test_evaluations_round_trip_exactly(tmp_path):
             1.25, {"distance": 2.5}, "ok", 99,
         )  # fmt: skip
         assert (second.fitness, second.status, second.error) == (None, "failed", "ValueError: boom")
-        assert store.evaluation_counts(run_id) == (2, 1)
+        assert store.evaluation_counts(run_id) == EvaluationCounts(2, 1, 0)
         assert store.run(run_id).optimizer_params == {"hmcr": 0.9}
 
 
@@ -101,8 +101,8 @@ def test_two_writers_on_one_file_keep_all_their_data(tmp_path):
     first.close()
     second.close()
     with RunStore(path) as store:
-        assert store.evaluation_counts(run_a) == (200, 0)
-        assert store.evaluation_counts(run_b) == (200, 0)
+        assert store.evaluation_counts(run_a) == EvaluationCounts(200, 0, 0)
+        assert store.evaluation_counts(run_b) == EvaluationCounts(200, 0, 0)
 
 
 def test_an_owners_heartbeat_is_renewed_and_a_silent_remote_claim_taken_over(tmp_path, monkeypatch):

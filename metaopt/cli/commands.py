@@ -54,6 +54,10 @@ from metaopt.storage.export import FORMATS, export_run
 from metaopt.storage.run_store import RunStore
 from metaopt.storage.whole_file import written_whole
 
+#: what `run --max-time` and `resume --max-time` accept: seconds of wall time, above 0
+MAX_TIME = {"type": click.FloatRange(min=0, min_open=True, max=1e9), "default": None,
+            "metavar": "SECONDS"}  # fmt: skip
+
 #: click 8.2+ raises this for a group called with no arguments (older versions exit at once).
 _NO_ARGS_IS_HELP = getattr(click.exceptions, "NoArgsIsHelpError", ())
 
@@ -212,12 +216,10 @@ def list_plugins(name: str | None) -> None:
 )
 @click.option(
     "--max-time",
-    type=click.FloatRange(min=0, min_open=True, max=1e9),
-    default=None,
-    metavar="SECONDS",
     help="Stop asking for candidates once the run has taken this long (the batch in flight "
-    "finishes): it ends finished, its budget unspent. Not --time-limit, which bounds one "
-    "evaluation.",
+    "finishes): it ends finished, its budget unspent (metaopt resume continues it). Not "
+    "--time-limit, which bounds one evaluation.",
+    **MAX_TIME,
 )
 @click.option(
     "--target",
@@ -331,12 +333,24 @@ def run_command(
 
 @main.command("resume")
 @click.argument("run_id")
+@click.option(
+    "--max-time",
+    help="Stop asking for candidates once this resume has taken this long, in place of the "
+    "run's stored max time (stored with the run).",
+    **MAX_TIME,
+)
 @scheduling_options
 @db_option
 def resume_command(
-    run_id: str, executor: str | None, workers: int | None, scheduler: str | None, db_path: str
+    run_id: str,
+    max_time: float | None,
+    executor: str | None,
+    workers: int | None,
+    scheduler: str | None,
+    db_path: str,
 ) -> None:
-    """Continue a run that was interrupted or killed, from its last checkpoint."""
+    """Continue a run that was interrupted or killed, or that stopped at its max time with
+    budget left, from its last checkpoint."""
     check_executor_options(executor, workers, scheduler)
     require_store(db_path)
     plugins = registry()
@@ -348,7 +362,9 @@ def resume_command(
         label = f"{record.optimizer} on {record.problem} (resumed)"
         result = _with_progress(
             label, db_path,
-            lambda progress: resume(record.id, store, optimizer_info, problem_info, progress, pool),
+            lambda progress: resume(
+                record.id, store, optimizer_info, problem_info, progress, pool, max_time
+            ),
         )  # fmt: skip
         _print_result(result, db_path, record.seed, pool.startup_time)
 

@@ -28,7 +28,7 @@ from metaopt.params import Param
 from metaopt.reporting.history import RunHistory
 from metaopt.reporting.recent import RecentFigures
 from metaopt.run_loop import RunResult
-from metaopt.storage.run_store import CandidateRecord, RunRecord
+from metaopt.storage.run_store import CandidateRecord, EvaluationCounts, RunRecord
 
 PROGRESS_REFRESH = 0.1
 
@@ -131,7 +131,8 @@ def result_table(result: RunResult, db_path: str, seed: int, startup_time: float
     if result.best_x is not None:
         for name, value in zip(result.names, result.best_x):
             table.add_row(f"  {name}", format_number(float(value)))
-    table.add_row("evaluations", f"{result.evaluations} ({result.failed} failed)")
+    screened = f", {result.screened} screened" if result.screened else ""
+    table.add_row("evaluations", f"{result.evaluations} ({result.failed} failed{screened})")
     starting = f" (of which starting workers {startup_time:.2f} s)" if startup_time >= 0.01 else ""
     table.add_row("wall time", f"{result.wall_time:.2f} s{starting}")
     table.add_row("seed", str(seed))
@@ -204,7 +205,7 @@ def settings_text(settings: dict[str, Any]) -> str:
 
 
 def run_summary(
-    run: RunRecord, counts: tuple[int, int], best: float | None, experiment: str | None
+    run: RunRecord, counts: EvaluationCounts, best: float | None, experiment: str | None
 ) -> dict[str, Any]:
     """One run of `metaopt runs` as named fields (its CSV and JSON form)."""
     return {
@@ -215,9 +216,10 @@ def run_summary(
         "experiment": experiment,
         "settings": settings_text(run.settings),
         "seed": run.seed,
-        "evaluations": counts[0],
+        "evaluations": counts.stored,
         "budget": run.budget,
-        "failed": counts[1],
+        "failed": counts.failed,
+        "screened": counts.screened,
         "best": best,
         "status": run.status,
         "started": run.started_at,
@@ -226,7 +228,7 @@ def run_summary(
 
 def runs_table(
     runs: Sequence[RunRecord],
-    counts: dict[int, tuple[int, int]],
+    counts: dict[int, EvaluationCounts],
     best: dict[int, float | None],
     experiments: dict[int, str],
 ) -> Table:
@@ -253,7 +255,7 @@ def runs_table(
 
 def run_document(
     run: RunRecord,
-    counts: tuple[int, int],
+    counts: EvaluationCounts,
     best: CandidateRecord | None,
     recent: RecentFigures | None = None,
 ) -> dict[str, Any]:
@@ -271,8 +273,9 @@ def run_document(
         "settings": run.settings,
         "seed": run.seed,
         "budget": run.budget,
-        "evaluations": counts[0],
-        "failed": counts[1],
+        "evaluations": counts.stored,
+        "failed": counts.failed,
+        "screened": counts.screened,
         "started_at": run.started_at,
         "ended_at": run.ended_at,
         "wall_time": run.wall_time,
@@ -311,7 +314,7 @@ def recent_document(recent: RecentFigures) -> dict[str, Any]:
 
 def run_detail(
     run: RunRecord,
-    counts: tuple[int, int],
+    counts: EvaluationCounts,
     best: CandidateRecord | None,
     recent: RecentFigures | None = None,
 ) -> Table:
@@ -329,7 +332,10 @@ def run_detail(
         table.add_row(f"  {name}", str(value))
     table.add_row("settings", settings_text(run.settings))
     table.add_row("seed", str(run.seed))
-    table.add_row("evaluations", f"{counts[0]} of {run.budget} ({counts[1]} failed)")
+    screened = f", {counts.screened} screened" if counts.screened else ""
+    table.add_row(
+        "evaluations", f"{counts.stored} of {run.budget} ({counts.failed} failed{screened})"
+    )
     table.add_row("started / ended", f"{run.started_at} / {run.ended_at or '-'}")
     table.add_row("wall time", "-" if run.wall_time is None else f"{run.wall_time:.2f} s")
     if best is not None:

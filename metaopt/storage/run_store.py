@@ -128,6 +128,16 @@ class EvaluationRecord:
     finished_at: float
 
 
+@dataclass(frozen=True)
+class EvaluationCounts:
+    """How many evaluations of a run are stored, and of those how many failed and how many
+    were screened (only their screen ran: metaopt run --screen)."""
+
+    stored: int
+    failed: int
+    screened: int
+
+
 @dataclass
 class CandidateRecord:
     """A candidate with its stored samples and their aggregate (the run's resample and
@@ -387,13 +397,17 @@ class RunStore:
                         "UPDATE runs SET checkpoint = ? WHERE id = ?", (json.dumps(content), run_id)
                     )
 
-    def mark_running(self, run_id: int) -> None:
-        """A resumed run is running again."""
+    def mark_running(self, run_id: int, settings: dict[str, Any] | None = None) -> None:
+        """A resumed run is running again, with ``settings`` where given (a new max time)."""
         with self._lock, self._transaction():
             self._connection.execute(
                 "UPDATE runs SET status = 'running', ended_at = NULL, message = NULL WHERE id = ?",
                 (run_id,),
             )
+            if settings is not None:
+                self._connection.execute(
+                    "UPDATE runs SET settings = ? WHERE id = ?", (json.dumps(settings), run_id)
+                )
 
     def finish_run(
         self, run_id: int, status: str, wall_time: float, message: str | None = None
@@ -502,14 +516,14 @@ class RunStore:
         """The rows of a read-only query (for the tables that extensions of the store add)."""
         return self._connection.execute(query, parameters).fetchall()
 
-    def evaluation_counts(self, run_id: int) -> tuple[int, int]:
-        """(stored evaluations, failed ones) of a run."""
-        total, failed = self._connection.execute(
-            "SELECT COUNT(*), COALESCE(SUM(status = 'failed'), 0) FROM evaluations "
-            "WHERE run_id = ?",
+    def evaluation_counts(self, run_id: int) -> EvaluationCounts:
+        """How many evaluations of a run are stored, failed and screened."""
+        stored, failed, screened = self._connection.execute(
+            "SELECT COUNT(*), COALESCE(SUM(status = 'failed'), 0), "
+            "COALESCE(SUM(status = 'screened'), 0) FROM evaluations WHERE run_id = ?",
             (run_id,),
         ).fetchone()
-        return int(total), int(failed)
+        return EvaluationCounts(int(stored), int(failed), int(screened))
 
     def best_candidate(self, run: RunRecord) -> CandidateRecord | None:
         """The run's best candidate under its sense by the aggregate over its samples (as the
