@@ -9,6 +9,8 @@ from click.testing import CliRunner
 from metaopt import ConfigError, Evaluation, Problem, ProblemInfo, Space
 from metaopt.cli import main
 from metaopt.plugins import registry
+from metaopt.reporting.convergence import run_convergence
+from metaopt.reporting.report import run_figures
 from metaopt.run_loop import RunSettings, RunSpec, resume, run
 from metaopt.storage.run_store import EvaluationCounts, RunStore
 
@@ -264,6 +266,17 @@ def test_show_and_history_count_screened_evaluations_apart_from_failed_ones(tmp_
     assert history.exit_code == 0, history.output
     (row,) = json.loads(history.output)
     assert (row["failed"], row["screened"]) == (0, screened)
+
+
+def test_the_convergence_figure_counts_screened_evaluations_apart_from_failed_ones(tmp_path):
+    with RunStore(tmp_path / "runs.db") as store:
+        result = _run(store, TwoPartSphere(), screen=True, budget=POPULATION * 2)
+        curves = run_convergence(store, store.run(result.run_id))
+        figures = run_figures(store, result.run_id, registry())
+    assert (curves.failed, curves.screened) == (0, result.screened) and result.screened > 0
+    title = figures.figures["convergence"].axes[0].get_title()
+    assert f"{result.screened} of {POPULATION * 2} evaluations screened" in title
+    assert "failed" not in title
 
 
 @pytest.mark.parametrize("executor", ["process", "dask"])

@@ -1,7 +1,8 @@
 """Convergence curves from stored evaluations: best so far, trailing mean, and quartiles over
 groups of runs with the same setup.
 
-Failed evaluations have no fitness: they never count as a best and are left out of every mean.
+Failed evaluations have no fitness, nor have screened ones (metaopt run --screen: only their
+bound is known): they never count as a best and are left out of every mean.
 """
 
 from __future__ import annotations
@@ -27,11 +28,12 @@ WINDOW_FRACTION = 0.05
 class Convergence:
     """One run's fitness in evaluation order (element i: the (i+1)-th evaluation)."""
 
-    fitness: np.ndarray  #: each evaluation's fitness, NaN where it failed
+    fitness: np.ndarray  #: each evaluation's fitness, NaN where it failed or was screened
     best: np.ndarray  #: best successful fitness so far (NaN before the first success)
     mean: np.ndarray  #: mean successful fitness of the last ``window`` evaluations
     window: int
     maximize: bool
+    screened: int = 0  #: evaluations of which only the screen ran (NaN, but not failed)
 
     @property
     def evaluations(self) -> np.ndarray:
@@ -40,12 +42,15 @@ class Convergence:
 
     @property
     def failed(self) -> int:
-        """Evaluations without a fitness."""
-        return int(np.isnan(self.fitness).sum())
+        """Evaluations without a fitness that were not screened."""
+        return int(np.isnan(self.fitness).sum()) - self.screened
 
 
-def convergence(fitness: np.ndarray, maximize: bool, window: int | None = None) -> Convergence:
-    """The curves of fitnesses in evaluation order (NaN = failed); window None = 5 % of them."""
+def convergence(
+    fitness: np.ndarray, maximize: bool, window: int | None = None, screened: int = 0
+) -> Convergence:
+    """The curves of fitnesses in evaluation order (NaN = failed, or one of ``screened``
+    screened ones); window None = 5 % of them."""
     fitness = np.asarray(fitness, dtype=float)
     if window is None:
         window = max(1, round(WINDOW_FRACTION * len(fitness)))
@@ -54,15 +59,15 @@ def convergence(fitness: np.ndarray, maximize: bool, window: int | None = None) 
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", RuntimeWarning)  # windows of failures only: NaN
         mean = np.nanmean(np.lib.stride_tricks.sliding_window_view(padded, window), axis=1)
-    return Convergence(fitness, best, mean, window, maximize)
+    return Convergence(fitness, best, mean, window, maximize, screened)
 
 
 def run_convergence(store: RunStore, run: RunRecord, window: int | None = None) -> Convergence:
     """The curves of a stored run."""
-    fitness = [
-        np.nan if record.fitness is None else record.fitness for record in store.evaluations(run.id)
-    ]
-    return convergence(np.array(fitness, dtype=float), run.sense == "maximize", window)
+    records = list(store.evaluations(run.id))
+    fitness = [np.nan if record.fitness is None else record.fitness for record in records]
+    screened = sum(record.status == "screened" for record in records)
+    return convergence(np.array(fitness, dtype=float), run.sense == "maximize", window, screened)
 
 
 @dataclass(frozen=True)

@@ -38,14 +38,22 @@ def convergence_figure(curves: Convergence, title: str, optimum: float | None = 
     """
     figure = Figure(figsize=(6.4, 6.4), layout="constrained")
     ax, zoom = figure.subplots(2, 1, sharex=True, height_ratios=(3, 2))
-    ax.plot(curves.evaluations, curves.mean, color="tab:gray", lw=0.9,
-            label=f"mean of the last {curves.window} evaluations (failed excluded)")  # fmt: skip
+    excluded = "failed and screened" if curves.screened else "failed"
+    ax.plot(
+        curves.evaluations,
+        curves.mean,
+        color="tab:gray",
+        lw=0.9,
+        label=f"mean of the last {curves.window} evaluations ({excluded} excluded)",
+    )
     ax.plot(curves.evaluations, curves.best, color="tab:red", lw=1.6, label="best so far")
     ax.set_ylabel(fitness_label(curves.maximize))
-    failed = (
-        f"\n{curves.failed} of {len(curves.fitness)} evaluations failed" if curves.failed else ""
-    )
-    ax.set_title(f"{title}{failed}", fontsize="medium")
+    lines, total = [title], len(curves.fitness)
+    if curves.failed:
+        lines.append(f"{curves.failed} of {total} evaluations failed")
+    if curves.screened:
+        lines.append(f"{curves.screened} of {total} evaluations screened (only a bound known)")
+    ax.set_title("\n".join(lines), fontsize="medium")
     ax.legend(fontsize="small")
     ax.grid(alpha=0.3)
     if not curves.maximize and _spans_decades([curves.best, curves.mean]):
