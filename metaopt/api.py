@@ -15,7 +15,7 @@ from __future__ import annotations
 
 import secrets
 from collections.abc import Callable, Mapping, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Any
 
@@ -163,7 +163,7 @@ def minimize(
     (optimizers with ``selected``, such as cmaes; docs/scaling.md). RunFailed if f(x) ever
     comes out below bound(x).
     """
-    settings = _settings(target, max_time, start, start_spread, bound)
+    settings = _settings(target, max_time, start, start_spread)
     return _optimize(
         f, bounds, optimizer, Sense.MINIMIZE, budget, seed, settings, store, params, bound
     )
@@ -174,15 +174,10 @@ def _settings(
     max_time: float | None,
     start: Sequence[float] | Sequence[Sequence[float]] | None,
     start_spread: float,
-    bound: Callable[[np.ndarray], float] | None,
 ) -> RunSettings:
-    """minimize's and maximize's stopping target, time limit, warm start and screening as run
-    settings."""
+    """minimize's and maximize's stopping target, time limit and warm start as run settings."""
     points = None if start is None else np.atleast_2d(np.asarray(start, dtype=float)).tolist()
-    return RunSettings(
-        target=target, max_time=max_time, start=points, start_spread=start_spread,
-        screen=bound is not None,
-    )  # fmt: skip
+    return RunSettings(target=target, max_time=max_time, start=points, start_spread=start_spread)
 
 
 def maximize(
@@ -202,7 +197,7 @@ def maximize(
 ) -> Result:
     """As minimize, for the largest f(x); ``target`` stops the run at or above it, and
     ``bound`` is never below f(x)."""
-    settings = _settings(target, max_time, start, start_spread, bound)
+    settings = _settings(target, max_time, start, start_spread)
     return _optimize(
         f, bounds, optimizer, Sense.MAXIMIZE, budget, seed, settings, store, params, bound
     )
@@ -225,6 +220,7 @@ def _optimize(
     if bound is not None and not callable(bound):
         raise ConfigError(f"bound must be a function of x or None, got {type(bound).__name__}")
     problem = _FunctionProblem(f, as_space(bounds), sense, bound)
+    settings = replace(settings, screen=problem.screens)
     name = f"python:{getattr(f, '__qualname__', type(f).__name__)}"
     problem_info = ProblemInfo(name, "a Python function", factory=lambda: problem)
     spec = RunSpec(

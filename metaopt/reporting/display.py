@@ -120,6 +120,11 @@ class RichProgress:
         self._bar.update(self._task, completed=done, best=format_number(best), rate=f"{rate:,.0f}")
 
 
+def _left_out(failed: int, screened: int) -> str:
+    """'(k failed)', with ', s screened' where a run screened (metaopt run --screen)."""
+    return f"({failed} failed" + (f", {screened} screened)" if screened else ")")
+
+
 def result_table(result: RunResult, db_path: str, seed: int, startup_time: float = 0.0) -> Table:
     """The summary printed after a run (its wall time includes starting the workers)."""
     table = Table(title=f"Run {result.run_id} ({result.status})", title_justify="left")
@@ -131,8 +136,8 @@ def result_table(result: RunResult, db_path: str, seed: int, startup_time: float
     if result.best_x is not None:
         for name, value in zip(result.names, result.best_x):
             table.add_row(f"  {name}", format_number(float(value)))
-    screened = f", {result.screened} screened" if result.screened else ""
-    table.add_row("evaluations", f"{result.evaluations} ({result.failed} failed{screened})")
+    left_out = _left_out(result.failed, result.screened)
+    table.add_row("evaluations", f"{result.evaluations} {left_out}")
     starting = f" (of which starting workers {startup_time:.2f} s)" if startup_time >= 0.01 else ""
     table.add_row("wall time", f"{result.wall_time:.2f} s{starting}")
     table.add_row("seed", str(seed))
@@ -332,10 +337,8 @@ def run_detail(
         table.add_row(f"  {name}", str(value))
     table.add_row("settings", settings_text(run.settings))
     table.add_row("seed", str(run.seed))
-    screened = f", {counts.screened} screened" if counts.screened else ""
-    table.add_row(
-        "evaluations", f"{counts.stored} of {run.budget} ({counts.failed} failed{screened})"
-    )
+    left_out = _left_out(counts.failed, counts.screened)
+    table.add_row("evaluations", f"{counts.stored} of {run.budget} {left_out}")
     table.add_row("started / ended", f"{run.started_at} / {run.ended_at or '-'}")
     table.add_row("wall time", "-" if run.wall_time is None else f"{run.wall_time:.2f} s")
     if best is not None:
