@@ -324,19 +324,34 @@ def resume(
     progress: Progress | None = None,
     executor: Executor | None = None,
     max_time: float | None = None,
+    budget: int | None = None,
 ) -> RunResult:
-    """Continue a stored run that did not finish, or that stopped at its max time with budget
-    left, from its last checkpoint; ``max_time`` replaces the stored one (stored with the run).
+    """Continue a stored run that did not finish, that stopped at its max time with budget
+    left, or (given a larger ``budget``) that spent its budget, from its last checkpoint;
+    ``max_time`` and ``budget`` replace the stored ones (stored with the run).
 
     In sync mode evaluations stored after the checkpoint are reused, not recomputed, so the
-    resumed run ends exactly where an uninterrupted one would (one given the time at once).
+    resumed run ends exactly where an uninterrupted one would (one given the time or budget at
+    once), but for an optimizer whose schedule spans its budget (its ``budget`` parameter stays
+    the one it started with: past it the schedule stays at its end).
     """
     record = store.run(run_id)
-    if record.status == "finished" and not (record.message or "").startswith(MAX_TIME_STOP):
-        raise ConfigError(f"run {record.id} already finished; nothing to resume")
+    if budget is not None and budget <= record.budget:
+        raise ConfigError(
+            f"budget must be more than run {record.id}'s budget of {record.budget} "
+            f"evaluations, got {budget}"
+        )
+    stopped_early = (record.message or "").startswith(MAX_TIME_STOP)
+    if record.status == "finished" and not stopped_early and budget is None:
+        raise ConfigError(
+            f"run {record.id} already finished; nothing to resume (a larger budget continues "
+            "a run that spent its budget)"
+        )
     if max_time is not None:
         record.settings = {**record.settings, "max_time": max_time}
-        RunSettings(**record.settings).check(record.budget)
+    if budget is not None:
+        record.budget = budget
+    RunSettings(**record.settings).check(record.budget)
     # A parameter a plugin declared after the run was stored takes its default, as a replay's do.
     optimizer_params = resolve(optimizer_info.params, record.optimizer_params, optimizer_info.name)
     problem_params = resolve(problem_info.params, record.problem_params, problem_info.name)
@@ -356,7 +371,7 @@ def resume(
         if checkpoint["state"] is not None:
             optimizer.load_state_dict(checkpoint["state"])
         store.claim(record.id)  # refused while another live process runs it
-        store.mark_running(record.id, record.settings)
+        store.mark_running(record.id, record.settings, budget)
         session = _Session(record.id, spec, optimizer, problem, problem_info, store, problem_params)
         session.restore(record, checkpoint)
         with adopt_problem(problem_info.factory, problem_params, problem):
@@ -525,8 +540,10 @@ class _Session:
         self._warn_of_waiting_workers(batch_size, executor.workers)
         next_index = self.told_below
         while next_index < self.total and not self.stopping:
-            count = min(batch_size, (self.total - next_index) // self.resample)
             first = next_index // self.resample
+            # Batch k holds candidates k * batch_size onwards, also after a resume that raised
+            # the budget past a short last batch: the optimizer is asked as in the longer run.
+            count = min(batch_size - first % batch_size, (self.total - next_index) // self.resample)
             candidates = [
                 _Candidate(first + i, x, [None] * self.resample)
                 for i, x in enumerate(self._ask(first, count))

@@ -159,3 +159,27 @@ def test_run_stops_at_its_max_time_having_done_what_a_longer_run_does_first(tmp_
     assert longer[:shared] == runs[1][:shared]  # the same run, continued
     bad = metaopt_cli("resume", "1", "--max-time", "0", cwd=tmp_path, env=BASIC)
     assert bad.returncode == 2 and len(bad.stderr.strip().splitlines()) == 1
+
+
+def test_resume_with_a_larger_budget_continues_a_run_that_spent_its_budget(tmp_path):
+    """`metaopt resume RUN --budget N` continues a finished CMA-ES run (no schedule over its
+    budget) as the run given N at once; a budget not above the stored one, or none for a
+    finished run, is refused in one line and leaves the run as it was."""
+    cmaes = {"METAOPT_LOAD_PLUGINS": "cma_es,functions"}
+    for budget in ("60", "120"):
+        done = metaopt_cli("run", "-o", "cmaes", "-p", "sphere", "--budget", budget, "--seed",
+                           "4", cwd=tmp_path, env=cmaes)  # fmt: skip
+        assert done.returncode == 0, done.stderr
+    for args, says in (((), "already finished; nothing to resume"),
+                       (("--budget", "60"), "budget must be more than run 1's budget of 60"),
+                       (("--budget", "0"), "Invalid value for '--budget'")):  # fmt: skip
+        refused = metaopt_cli("resume", "1", *args, cwd=tmp_path, env=cmaes)
+        assert refused.returncode == 2 and says in refused.stderr
+        assert len(refused.stderr.strip().splitlines()) == 1
+    assert json.loads(metaopt_cli("show", "1", "--format", "json", cwd=tmp_path).stdout)[
+        "budget"] == 60  # fmt: skip
+    resumed = metaopt_cli("resume", "1", "--budget", "120", cwd=tmp_path, env=cmaes)
+    assert resumed.returncode == 0, resumed.stderr
+    shown = json.loads(metaopt_cli("show", "1", "--format", "json", cwd=tmp_path).stdout)
+    assert (shown["evaluations"], shown["budget"], shown["status"]) == (120, 120, "finished")
+    assert _untimed_evaluations("1", tmp_path) == _untimed_evaluations("2", tmp_path)

@@ -140,6 +140,29 @@ def test_a_run_stopped_at_its_max_time_resumes_with_more_time_to_the_unstopped_r
         assert store.run(other.run_id).settings["max_time"] == 0.2
 
 
+def test_a_run_that_spent_its_budget_resumes_with_a_larger_one_to_the_larger_runs_end(tmp_path):
+    """CMA-ES has no schedule over its budget: a run of 40 evaluations (five generations of 7
+    and a short one of 5), resumed with a budget of 80, stores row for row what a run given 80
+    at once does: the short batch's generation is completed before the next is asked."""
+    plugins = registry()
+    cmaes, sphere = plugins.optimizer("cmaes"), plugins.problem("sphere")
+    with RunStore(tmp_path / "runs.db") as store:
+        whole = run(RunSpec("cmaes", "sphere", 80, 5, problem_params={"dim": 3}), cmaes, sphere,
+                    store)  # fmt: skip
+        spent = run(RunSpec("cmaes", "sphere", 40, 5, problem_params={"dim": 3}), cmaes, sphere,
+                    store)  # fmt: skip
+        with pytest.raises(ConfigError, match="already finished; nothing to resume"):
+            resume(spent.run_id, store, cmaes, sphere)
+        with pytest.raises(ConfigError, match="budget must be more than run 2's budget of 40"):
+            resume(spent.run_id, store, cmaes, sphere, budget=40)
+        assert store.run(spent.run_id).budget == 40  # a refused budget is not stored
+        more = resume(spent.run_id, store, cmaes, sphere, budget=80)
+        record = store.run(spent.run_id)
+        assert (more.evaluations, record.budget, record.status) == (80, 80, "finished")
+        assert _stored(store, spent.run_id) == _stored(store, whole.run_id)
+        assert more.best_fitness == whole.best_fitness
+
+
 def test_a_run_stored_before_a_parameter_existed_resumes_with_its_default(tmp_path):
     """The GA's eta_m_end and fine_share came after runs were stored: an interrupted run whose
     stored parameters lack them resumes with their defaults and ends as the run that never

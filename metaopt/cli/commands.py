@@ -14,6 +14,7 @@ from rich.markup import escape
 from metaopt.assessment.candidates import find_start
 from metaopt.assessment.replay import find_source, replay_candidate, replay_seeds
 from metaopt.cli.common import (
+    BUDGET,
     MAX_INT64,
     build_executor,
     check_executor_options,
@@ -152,7 +153,7 @@ def list_plugins(name: str | None) -> None:
 @click.option("--problem", "-p", "problem_name", required=True, help="Problem name.")
 @click.option(
     "--budget",
-    type=click.IntRange(min=1, max=MAX_INT64),
+    type=BUDGET,
     default=None,
     help="Evaluations [problem's default].",
 )
@@ -339,18 +340,26 @@ def run_command(
     "run's stored max time (stored with the run).",
     **MAX_TIME,
 )
+@click.option(
+    "--budget",
+    type=BUDGET,
+    default=None,
+    help="Evaluations in all, more than the run's stored budget (stored with the run): "
+    "continues a run that spent its budget.",
+)
 @scheduling_options
 @db_option
 def resume_command(
     run_id: str,
     max_time: float | None,
+    budget: int | None,
     executor: str | None,
     workers: int | None,
     scheduler: str | None,
     db_path: str,
 ) -> None:
-    """Continue a run that was interrupted or killed, or that stopped at its max time with
-    budget left, from its last checkpoint."""
+    """Continue a run that was interrupted or killed, that stopped at its max time with budget
+    left, or (with --budget) that spent its budget, from its last checkpoint."""
     check_executor_options(executor, workers, scheduler)
     require_store(db_path)
     plugins = registry()
@@ -363,7 +372,7 @@ def resume_command(
         result = _with_progress(
             label, db_path,
             lambda progress: resume(
-                record.id, store, optimizer_info, problem_info, progress, pool, max_time
+                record.id, store, optimizer_info, problem_info, progress, pool, max_time, budget
             ),
         )  # fmt: skip
         _print_result(result, db_path, record.seed, pool.startup_time)

@@ -26,6 +26,8 @@ SCHEDULER_ADDRESS = re.compile(r"((tcp|tls|ucx|inproc)://)?[^\s/:]+(:\d+)?")
 MAX_WORKERS = 1024
 #: The largest seed or budget: SQLite stores integers of 64 bits.
 MAX_INT64 = 2**63 - 1
+#: what every --budget accepts: a whole number of evaluations, 1 or more
+BUDGET = click.IntRange(min=1, max=MAX_INT64)
 
 db_option = click.option(
     "--db",

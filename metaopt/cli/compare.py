@@ -10,6 +10,7 @@ import click
 from rich.console import Console
 
 from metaopt.cli.common import (
+    BUDGET,
     MAX_INT64,
     build_executor,
     check_executor_options,
@@ -61,7 +62,7 @@ MAX_SEEDS = 10_000
 )
 @click.option(
     "--budget",
-    type=click.IntRange(min=1, max=MAX_INT64),
+    type=BUDGET,
     default=None,
     help="Flags form: evaluations per run [the problem's default].",
 )

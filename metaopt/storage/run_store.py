@@ -397,8 +397,11 @@ class RunStore:
                         "UPDATE runs SET checkpoint = ? WHERE id = ?", (json.dumps(content), run_id)
                     )
 
-    def mark_running(self, run_id: int, settings: dict[str, Any] | None = None) -> None:
-        """A resumed run is running again, with ``settings`` where given (a new max time)."""
+    def mark_running(
+        self, run_id: int, settings: dict[str, Any] | None = None, budget: int | None = None
+    ) -> None:
+        """A resumed run is running again, with ``settings`` (a new max time) and ``budget`` (a
+        larger one) where given."""
         with self._lock, self._transaction():
             self._connection.execute(
                 "UPDATE runs SET status = 'running', ended_at = NULL, message = NULL WHERE id = ?",
@@ -407,6 +410,10 @@ class RunStore:
             if settings is not None:
                 self._connection.execute(
                     "UPDATE runs SET settings = ? WHERE id = ?", (json.dumps(settings), run_id)
+                )
+            if budget is not None:
+                self._connection.execute(
+                    "UPDATE runs SET budget = ? WHERE id = ?", (budget, run_id)
                 )
 
     def finish_run(
