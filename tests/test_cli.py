@@ -21,6 +21,7 @@ def test_run_then_runs_show_and_export(tmp_path):
     assert (tmp_path / "metaopt.db").exists()  # default store in the working directory
     listing = metaopt_cli("runs", cwd=tmp_path, env=BASIC)
     assert listing.returncode == 0 and "500/500" in listing.stdout and "finished" in listing.stdout
+    assert "screened" not in listing.stdout  # a column only where a listed run screened
     shown = metaopt_cli("show", "1", cwd=tmp_path, env=BASIC)
     assert "hmcr" in shown.stdout and "0.95" in shown.stdout and "dim" in shown.stdout
 

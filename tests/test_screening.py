@@ -261,6 +261,11 @@ def test_show_and_history_count_screened_evaluations_apart_from_failed_ones(tmp_
         record = document[0] if isinstance(document, list) else document
         counts = (record["evaluations"], record["failed"], record["screened"])
         assert counts == (budget, 0, screened)
+    table = CliRunner().invoke(main, ["runs", "--db", str(db)]).output.splitlines()
+    header = next(line for line in table if line.split()[:2] == ["id", "optimizer"])
+    (row,) = [line for line in table if line.split()[:1] == [str(result.run_id)]]
+    assert header.split()[7:10] == ["evals", "failed", "screened"]
+    assert row.split()[-7:-4] == [f"{budget}/{budget}", "0", str(screened)]
     history = CliRunner().invoke(main, ["history", str(result.run_id), "--window", "96",
                                         "--format", "json", "--db", str(db)])  # fmt: skip
     assert history.exit_code == 0, history.output

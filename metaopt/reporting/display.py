@@ -238,9 +238,11 @@ def runs_table(
     experiments: dict[int, str],
 ) -> Table:
     """`metaopt runs`: one row per run (cells fold rather than being cut in a narrow
-    terminal)."""
+    terminal), with a screened column where a listed run screened (metaopt run --screen)."""
+    screened = any(counts[run.id].screened for run in runs)
     headers = ("id", "optimizer", "problem", "backend", "experiment", "settings", "seed",
-               "evals", "failed", "best", "status", "started")  # fmt: skip
+               "evals", "failed", *(("screened",) if screened else ()), "best", "status",
+               "started")  # fmt: skip
     rows = []
     for run in runs:
         fields = run_summary(run, counts[run.id], best[run.id], experiments.get(run.id))
@@ -248,6 +250,7 @@ def runs_table(
             str(run.id), run.optimizer, run.problem, fields["backend"] or "-",
             fields["experiment"] or "-", fields["settings"], str(run.seed),
             f"{fields['evaluations']}/{run.budget}", str(fields["failed"]),
+            *((str(fields["screened"]),) if screened else ()),
             format_number(best[run.id]), run.status, run.started_at[:16].replace("T", " "),
         ))  # fmt: skip
     table = Table(title="runs", title_justify="left", box=box.SIMPLE_HEAD, pad_edge=False)
