@@ -290,9 +290,19 @@ def test_an_edited_experiment_under_the_same_name_is_refused(tmp_path: Path) -> 
          'controller = ["steered", "balanced"]\n[[optimizers]]\nname = "hs"\nbudget = 4\n'
          'settings = { start_from = "goal_walk" }\n',  # fits both, with 15 and 17 values
          "start_from 'goal_walk' gives different start points in different cells"),
+        ('problem = "nao-walk"\nseeds = 1\n[problem_settings]\nengine_score = "worst"\n'
+         'backend = ["mujoco+pybullet+ode", "mujoco"]\n[[optimizers]]\nname = "cmaes"\n'
+         'budget = 24\nsettings = { screen = true }\n',  # one engine: no cheaper bound
+         "cell 'cmaes' [backend=mujoco]: problem 'nao-walk' with these settings has no cheaper "
+         "bound to screen with"),
+        ('problem = "nao-walk"\nseeds = 1\n[problem_settings]\nengine_score = "worst"\n'
+         'backend = "mujoco+pybullet+ode"\n[[optimizers]]\nname = "cmaes"\nbudget = 24\n'
+         'settings = { screen = true }\n[[optimizers]]\nname = "hs"\nbudget = 24\n'
+         'settings = { screen = true }\n',  # refused before the cmaes cell runs
+         "cell 'hs': optimizer 'hs' reads every candidate's fitness"),
     ],
     ids=["unknown optimizer", "missing budget", "bad TOML", "unknown start", "other variables",
-         "start per cell"],
+         "start per cell", "screen without a bound", "screen with hs"],
 )  # fmt: skip
 def test_a_bad_experiment_file_is_one_clear_error(tmp_path: Path, text: str, message: str) -> None:
     (tmp_path / "bad.toml").write_text(text)

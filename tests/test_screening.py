@@ -202,7 +202,8 @@ def test_nao_walk_refuses_screen_engines_that_are_not_a_part_of_the_backend(sett
 
 def test_a_screened_nao_walk_run_is_the_same_on_one_worker_and_two(tmp_path):
     """Where the cut falls depends on the scores alone: two workers (which complete a
-    candidate ahead while the other is decided) tell CMA-ES what one worker does."""
+    candidate ahead while the other is decided) tell CMA-ES what one worker does, and so does
+    `metaopt compare` with the setting in an experiment file."""
     db = str(tmp_path / "runs.db")
     given = [arg for name, value in WALK.items() for arg in ("--set", f"{name}={value}")]
     for workers in ("1", "2"):
@@ -212,12 +213,22 @@ def test_a_screened_nao_walk_run_is_the_same_on_one_worker_and_two(tmp_path):
                    "--db", db],
         )  # fmt: skip
         assert result.exit_code == 0, result.output
+    # An experiment file's `settings = { screen = true }` is the same run (compare: serial).
+    (tmp_path / "screened.toml").write_text(
+        'problem = "nao-walk"\nseeds = [4]\n[problem_settings]\n'
+        + "".join(f"{name} = {json.dumps(value)}\n" for name, value in WALK.items())
+        + '[[optimizers]]\nname = "cmaes"\nbudget = 24\nparams = { population = 8 }\n'
+        "settings = { screen = true }\n"
+    )
+    compared = CliRunner().invoke(main, ["compare", str(tmp_path / "screened.toml"), "--db", db])
+    assert compared.exit_code == 0, compared.output
     with RunStore(db) as store:
-        one, two = store.runs()
-        assert one.checkpoint["state"] == two.checkpoint["state"]
-        assert one.settings["screen"] and two.settings["screen"]
+        one, two, member = store.runs()
+        assert one.checkpoint["state"] == two.checkpoint["state"] == member.checkpoint["state"]
+        assert one.settings["screen"] and two.settings["screen"] and member.settings["screen"]
         rows = [{e.index: (e.status, e.fitness) for e in store.evaluations(run.id)}
-                for run in (one, two)]  # fmt: skip
+                for run in (one, two, member)]  # fmt: skip
+    assert rows[2] == rows[0]
     _assert_same_but_completed_ahead(serial=rows[0], parallel=rows[1])
     statuses = [status for status, _ in rows[0].values()]
     assert statuses.count("screened") > 0 and statuses.count("ok") >= 3 * 4

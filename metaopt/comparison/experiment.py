@@ -7,17 +7,18 @@ from __future__ import annotations
 import dataclasses
 import itertools
 import json
+import warnings
 from collections.abc import Iterable
 from dataclasses import dataclass, field, fields
 from pathlib import Path
 from typing import Any
 
 from metaopt.assessment.candidates import stored_start
-from metaopt.errors import ConfigError
+from metaopt.errors import ConfigError, SettingWarning
 from metaopt.params import Param, resolve, suggest
 from metaopt.plugins import Registry
 from metaopt.problem import ProblemInfo
-from metaopt.run_loop import RunSettings, RunSpec
+from metaopt.run_loop import RunSettings, RunSpec, check_run
 from metaopt.settings import parse_problem_settings
 
 _TOP_KEYS = ("name", "problem", "seeds", "target", "budget", "problem_settings", "optimizers")
@@ -246,7 +247,7 @@ def _experiment(raw: dict[str, Any], plugins: Registry) -> Experiment:
     target = raw.get("target")
     if target is not None and (isinstance(target, bool) or not isinstance(target, int | float)):
         raise ConfigError(f"'target' must be a number, got {target!r}")
-    return Experiment(
+    experiment = Experiment(
         name=name,
         problem=problem_info.name,
         seeds=_seeds(raw.get("seeds")),
@@ -254,6 +255,23 @@ def _experiment(raw: dict[str, Any], plugins: Registry) -> Experiment:
         problem_grid=grid,
         target=None if target is None else float(target),
     )
+    _check_cells(experiment, plugins, problem_info)
+    return experiment
+
+
+def _check_cells(experiment: Experiment, plugins: Registry, problem_info: ProblemInfo) -> None:
+    """Every cell's run as `metaopt run --check` checks it (the optimizer and problem built
+    together, e.g. screening with both), so that a bad cell is refused before any cell runs.
+    The runs warn of their settings themselves; the check does not warn twice."""
+    for cell in experiment.cells():
+        spec = experiment.spec(cell, experiment.seeds[0])
+        try:
+            with warnings.catch_warnings():
+                warnings.simplefilter("ignore", SettingWarning)
+                check_run(spec, plugins.optimizer(cell.optimizer.name), problem_info)
+        except ConfigError as error:
+            setting = f" [{cell.setting}]" if cell.setting else ""
+            raise ConfigError(f"cell {cell.optimizer.label!r}{setting}: {error}") from None
 
 
 def _seeds(value: Any) -> tuple[int, ...]:
