@@ -49,6 +49,7 @@ def refusal(tmp_path: Path, path: str, knob: str, value: str, **knobs: str) -> s
         ("DEADLINE", "30m", "a whole number, 1 or more"),
         ("LATER_STAGES", "6m", "a whole number, 1 or more"),
         ("STAGE1_TIME", "0", "a whole number, 1 or more"),
+        ("RACE_SEEDS", "ten", "a whole number, 1 or more"),
         ("FLAT_BEST", "1m", "a fitness in metres, 0 or more"),
         ("FLAT_BEST", "-1", "a fitness in metres, 0 or more"),
         ("FLAT_FELL", "90%", "a share of candidates from 0 to 1"),

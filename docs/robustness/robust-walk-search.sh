@@ -80,6 +80,8 @@
 # that falls in more of its nominal episodes on any engine ranks by that margin, not by its
 # speed alone (a speed is measured up to the fall, so a fast gait that falls on two engines
 # ranked first; stage 1b from such a basin found no candidate that stays up).
+# RACE_SEEDS=N races the re-check's 3 best over N seeds per cell instead of 10 (the race costs
+# about 3 x 10 episodes per cell, 270-330 s of design Q's later stages).
 # RACE_FELL=RATE is the race's fall bound instead of 0.02: at 0.02 a gait falling in 4 % of
 # the race's episodes misses by as much as one that stands still (the margins are relative to
 # the bound), so the race chose slower, safer gaits over faster ones that fall now and then.
@@ -164,7 +166,7 @@
 # script at commit 5ed7043, the seventh at 3c42de4, the sixth at 6e1fe34, the fifth at
 # 3c8db53, the fourth at ff6956d, the third at abce00d, the second at 9d03e62.
 set -euo pipefail
-seed=${1:?usage: [DEADLINE=SECONDS LATER_STAGES=SECONDS STAGE1_TIME=SECONDS STAGE1_OPTIMIZER=NAME STAGE1_BATCH=B BASIN_FELL=RATE RACE_FELL=RATE STAGE1B_BUDGET=N STAGE1B_OPTIMIZER=NAME STAGE1B_BATCH=B STAGE1B_SCREEN=1 PIPELINES=N STAGE1_RUNS=R STAGE1B_RESAMPLE=K TOP=K STAGE1_ENGINE=E STAGE1_SET="NAME=VALUE ..." STAGE1B_START=all|raced|pool STAGE1B_SET="NAME=VALUE ..." STAGE1B_CELLS="NAME,..." FLAT_BEST=METRES FLAT_FELL=SHARE] robust-walk-search.sh SEED}
+seed=${1:?usage: [DEADLINE=SECONDS LATER_STAGES=SECONDS STAGE1_TIME=SECONDS STAGE1_OPTIMIZER=NAME STAGE1_BATCH=B BASIN_FELL=RATE RACE_FELL=RATE RACE_SEEDS=N STAGE1B_BUDGET=N STAGE1B_OPTIMIZER=NAME STAGE1B_BATCH=B STAGE1B_SCREEN=1 PIPELINES=N STAGE1_RUNS=R STAGE1B_RESAMPLE=K TOP=K STAGE1_ENGINE=E STAGE1_SET="NAME=VALUE ..." STAGE1B_START=all|raced|pool STAGE1B_SET="NAME=VALUE ..." STAGE1B_CELLS="NAME,..." FLAT_BEST=METRES FLAT_FELL=SHARE] robust-walk-search.sh SEED}
 stage1b_budget=${STAGE1B_BUDGET:-600}
 stage1b_optimizer=${STAGE1B_OPTIMIZER:-hs}
 stage1b_batch=${STAGE1B_BATCH:-2}
@@ -172,7 +174,7 @@ pipelines=${PIPELINES:-3}
 stage1_runs=${STAGE1_RUNS:-4}
 stage1_optimizer=${STAGE1_OPTIMIZER:-hs}
 stage1_batch=${STAGE1_BATCH:-2}
-for knob in PIPELINES STAGE1_RUNS DEADLINE LATER_STAGES STAGE1_TIME; do
+for knob in PIPELINES STAGE1_RUNS DEADLINE LATER_STAGES STAGE1_TIME RACE_SEEDS; do
     if ! [[ ${!knob:-1} =~ ^[1-9][0-9]*$ ]]; then
         echo "$knob must be a whole number, 1 or more; got '${!knob}'" >&2
         exit 2
@@ -187,6 +189,7 @@ done
 basin_goals=(--goal "speed>=0.44")
 if [ -n "${BASIN_FELL:-}" ]; then basin_goals+=(--goal "fell<=$BASIN_FELL"); fi
 race_fell=${RACE_FELL:-0.02}
+race_seeds=${RACE_SEEDS:-10}
 top=${TOP:-3}
 stage1_engine=${STAGE1_ENGINE:-mujoco}
 stage1b_start=${STAGE1B_START:-raced}
@@ -362,7 +365,7 @@ metaopt robustness "${finals[@]}" --top "$top" --seeds 1 --seed 1 --set fitness=
     --set flight_penalty=100 --workers 2 --db "$db" --csv "robust-walk-s$seed-top.csv" \
     --ranking "robust-walk-s$seed-top-ranking.csv" | tee "robust-walk-s$seed-top.txt"
 # shellcheck disable=SC2046  # one word per finalist
-metaopt robustness $(first "robust-walk-s$seed-top-ranking.csv" 3) --seeds 10 --seed 2 \
+metaopt robustness $(first "robust-walk-s$seed-top-ranking.csv" 3) --seeds "$race_seeds" --seed 2 \
     --set fitness=robust --set flight_penalty=100 \
     --goal "speed>=0.44" --goal "fell<=$race_fell" --goal "|drift|<=0.3" --goal "flight<=0.05" \
     --workers 2 --db "$db" --csv "robust-walk-s$seed-race.csv" \
