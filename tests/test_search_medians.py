@@ -119,3 +119,31 @@ def test_a_failed_evaluation_misses_every_goal_on_its_engine(tmp_path: Path) -> 
     assert "mujoco: misses speed>=0.44 (0.5), fell<=0.05 (0)" in done.stdout
     assert "mujoco (1 failed)" in done.stdout
     assert "meets every goal on every engine: 1 of 2 (s1.csv)" in done.stdout
+
+
+def test_against_gives_the_median_paired_difference_and_the_sign_test(tmp_path: Path) -> None:
+    """Three searches, each against its baseline on the same seed: every later table walks
+    faster on mujoco (by 0.1, 0.02 and 0.05), two fall more on ode; the median differences
+    are 0.05 m/s and 50 percentage points, the 3-0 split's two-sided sign test p = 2/8."""
+    base = {"mujoco": [0.4, 0.4], "ode": [0.5, 0.5]}
+    later = {"mujoco": [0.5, 0.42, 0.45], "falls": [0, 1, 1]}
+    for i in range(3):
+        _search(tmp_path / f"b{i}.csv", f"run {i}", base)
+        faster = {"mujoco": [later["mujoco"][i]] * 2, "ode": [0.5, 0.5]}
+        _search(tmp_path / f"l{i}.csv", f"run {i}", faster, falls=later["falls"][i])
+    tables = [f"l{i}.csv" for i in range(3)]
+    against = [arg for i in range(3) for arg in ("--against", f"b{i}.csv")]
+    done = metaopt_cli("robustness-summary", *tables, *against, "--csv", "out.csv",
+                       cwd=tmp_path)  # fmt: skip
+    assert done.returncode == 0, done.stderr
+    (mujoco, ode) = [r for r in _rows(tmp_path / "out.csv")
+                     if r["search"] == "median difference of 3 pairs"]  # fmt: skip
+    assert float(mujoco["speed"]) == pytest.approx(0.05)
+    assert float(ode["fell"]) == pytest.approx(0.5)  # falls 0, 1 and 1 of 2: 0, 50 and 50 %
+    assert float(ode["speed"]) == 0.0
+    assert "+0.050 (3↑ 0↓, p 0.25)" in done.stdout
+    assert "+50.0 pp (2↑ 0↓, p 0.50)" in done.stdout
+    assert "+0.000 (0↑ 0↓, p 1.00)" in done.stdout  # ode's speed: three ties
+    unpaired = metaopt_cli("robustness-summary", *tables, "--against", "b0.csv", cwd=tmp_path)
+    assert unpaired.returncode == 2
+    assert "3 tables against 1: give one --against table per table" in unpaired.stderr

@@ -129,14 +129,67 @@ def medians(tables: Sequence[SearchTable]) -> Medians:
     return Medians(len(tables), figures, failed)
 
 
+@dataclass(frozen=True)
+class PairedDifferences:
+    """Searches paired by seed with a baseline's (the i-th table with the i-th baseline): per
+    engine and metric, the median of the differences (search minus baseline), how many pairs
+    went up and down, and the two-sided sign test's p-value of that split (ties left out)."""
+
+    count: int
+    median: dict[str, dict[str, float]]
+    up: dict[str, dict[str, int]]
+    down: dict[str, dict[str, int]]
+
+    def sign_test(self, engine: str, metric: str) -> float:
+        """P(a split at least this uneven | up and down equally likely), ties left out."""
+        up, down = self.up[engine][metric], self.down[engine][metric]
+        pairs = up + down
+        tail = sum(math.comb(pairs, k) for k in range(min(up, down) + 1)) / 2**pairs
+        return min(1.0, 2 * tail)
+
+
+def paired_differences(
+    tables: Sequence[SearchTable], baselines: Sequence[SearchTable]
+) -> PairedDifferences:
+    """The searches against their baselines, pair by pair (the same seeds, another design or
+    more time): paired, the seed's own luck cancels, which medians of each side keep."""
+    if len(tables) != len(baselines):
+        raise ConfigError(
+            f"{len(tables)} tables against {len(baselines)}: give one --against table per "
+            "table, in the same order (the i-th of each on the same seed)"
+        )
+    check_alike([*tables, *baselines])
+    median: dict[str, dict[str, float]] = {}
+    up: dict[str, dict[str, int]] = {}
+    down: dict[str, dict[str, int]] = {}
+    for engine in tables[0].figures:
+        median[engine], up[engine], down[engine] = {}, {}, {}
+        for metric in tables[0].metrics:
+            differences = [
+                t.figures[engine][metric] - b.figures[engine][metric]
+                for t, b in zip(tables, baselines)
+            ]
+            differences = [d for d in differences if not math.isnan(d)]
+            median[engine][metric] = statistics.median(differences) if differences else math.nan
+            up[engine][metric] = sum(d > 0 for d in differences)
+            down[engine][metric] = sum(d < 0 for d in differences)
+    return PairedDifferences(len(tables), median, up, down)
+
+
 def missed_goals(figures: dict[str, float], failed: int, goals: Sequence[Goal]) -> list[Goal]:
     """The goals one engine's figures miss (every goal, where an evaluation failed)."""
     return [goal for goal in goals if goal.margin_of(figures[goal.metric], failed) < 0]
 
 
-def write_medians(path: Path, tables: Sequence[SearchTable], summary: Medians) -> None:
+def write_medians(
+    path: Path,
+    tables: Sequence[SearchTable],
+    summary: Medians,
+    paired: PairedDifferences | None = None,
+) -> None:
     """One row per search and engine, then one per engine for the median over the searches
-    (search 'median of N'). Written whole or not at all."""
+    (search 'median of N'), and with ``paired`` one per engine for the median paired
+    difference (search 'median difference of N pairs'). Written whole or not at all."""
     metrics = tables[0].metrics
     rows = [
         [t.source, t.candidate, engine, t.failed[engine], *(figures[m] for m in metrics)]
@@ -148,4 +201,10 @@ def write_medians(path: Path, tables: Sequence[SearchTable], summary: Medians) -
          *(figures[m] for m in metrics)]
         for engine, figures in summary.figures.items()
     ]  # fmt: skip
+    if paired is not None:
+        rows += [
+            [f"median difference of {paired.count} pairs", "", engine, "",
+             *(figures[m] for m in metrics)]
+            for engine, figures in paired.median.items()
+        ]  # fmt: skip
     write_rows(path, ["search", "candidate", "engine", "failed", *metrics], rows)

@@ -233,27 +233,47 @@ def _checked_goals(
     help="A bound on a metric (as robustness --goal), checked on each engine's median over "
     "the searches.",
 )
+@click.option(
+    "--against",
+    "against_paths",
+    multiple=True,
+    metavar="CSV",
+    type=click.Path(dir_okay=False, path_type=Path),
+    help="A baseline search's table, once per CSV in the same order (the same seed, another "
+    "design or less time): also shows the median of the paired differences.",
+)
 @output_file_option(
     "--csv",
     "csv_path",
-    "Write the figures as CSV here: each search's per engine, then the medians.",
+    "Write the figures as CSV here: each search's per engine, then the medians (and the "
+    "median paired differences).",
     suffix=".csv",
 )
 def robustness_summary_command(
-    csv_paths: tuple[Path, ...], goal_texts: tuple[str, ...], csv_path: Path | None
+    csv_paths: tuple[Path, ...],
+    goal_texts: tuple[str, ...],
+    against_paths: tuple[Path, ...],
+    csv_path: Path | None,
 ) -> None:
     """Summarise several searches of one design: each CSV is one search's chosen candidate
     over the perturbation table (robustness --csv); shows each search's whole-table figures
     per engine and their median over the searches, against the goals. A search is one
-    chaotic trajectory: a design is judged by medians over its seeds."""
+    chaotic trajectory: a design is judged by medians over its seeds, and two designs run on
+    the same seeds by their paired differences (--against)."""
     tables = [search_medians.read_table(path) for path in csv_paths]
     goals = _checked_goals(tables, goal_texts)
+    paired = None
+    if against_paths:
+        baselines = [search_medians.read_table(path) for path in against_paths]
+        paired = search_medians.paired_differences(tables, baselines)
     summary = search_medians.medians(tables)
     console.print(display.search_medians_table(tables, summary))
     if goals:
         console.print(display.search_medians_verdict(tables, summary, goals))
+    if paired is not None:
+        console.print(display.paired_differences_table(paired, tables[0].metrics))
     if csv_path is not None:
-        search_medians.write_medians(csv_path, tables, summary)
+        search_medians.write_medians(csv_path, tables, summary, paired)
         console.print(f"wrote {csv_path}")
 
 

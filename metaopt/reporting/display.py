@@ -23,7 +23,12 @@ from rich.progress import (
 from rich.table import Table
 
 from metaopt.assessment.replay import Replay, ReplaySource, SeedReplay
-from metaopt.assessment.search_medians import Medians, SearchTable, missed_goals
+from metaopt.assessment.search_medians import (
+    Medians,
+    PairedDifferences,
+    SearchTable,
+    missed_goals,
+)
 from metaopt.params import Param
 from metaopt.reporting.history import RunHistory
 from metaopt.reporting.recent import RecentFigures
@@ -521,6 +526,26 @@ def search_medians_table(tables: Sequence, summary: Medians) -> Table:
     for engine, figures in summary.figures.items():
         table.add_row(f"median of {summary.count}", "", engine,
                       *_figure_cells(first.metrics, figures))  # fmt: skip
+    return table
+
+
+def paired_differences_table(paired: PairedDifferences, metrics: Sequence[str]) -> Table:
+    """`metaopt robustness-summary ... --against ...`: per engine and metric, the median of
+    the pairs' differences (a rate's in percentage points), how many went up and down, and
+    the sign test's p-value."""
+    table = Table(title=f"{paired.count} searches against their --against tables, pair by "
+                  "pair: the median difference (pairs up / down, two-sided sign test p)",
+                  title_justify="left")  # fmt: skip
+    table.add_column("engine")
+    _add_figure_columns(table, metrics)
+    for engine, medians in paired.median.items():
+        cells = []
+        for metric in metrics:
+            value = medians[metric]
+            shown = f"{value * 100:+.1f} pp" if metric.startswith("fell") else f"{value:+.3f}"
+            up, down = paired.up[engine][metric], paired.down[engine][metric]
+            cells.append(f"{shown} ({up}↑ {down}↓, p {paired.sign_test(engine, metric):.2f})")
+        table.add_row(engine, *cells)
     return table
 
 
