@@ -371,7 +371,7 @@ def resume(
         if checkpoint["state"] is not None:
             optimizer.load_state_dict(checkpoint["state"])
         store.claim(record.id)  # refused while another live process runs it
-        store.mark_running(record.id, record.settings, budget)
+        store.mark_running(record.id, record.settings, record.budget)
         session = _Session(record.id, spec, optimizer, problem, problem_info, store, problem_params)
         session.restore(record, checkpoint)
         with adopt_problem(problem_info.factory, problem_params, problem):

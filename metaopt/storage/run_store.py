@@ -397,24 +397,15 @@ class RunStore:
                         "UPDATE runs SET checkpoint = ? WHERE id = ?", (json.dumps(content), run_id)
                     )
 
-    def mark_running(
-        self, run_id: int, settings: dict[str, Any] | None = None, budget: int | None = None
-    ) -> None:
-        """A resumed run is running again, with ``settings`` (a new max time) and ``budget`` (a
-        larger one) where given."""
+    def mark_running(self, run_id: int, settings: dict[str, Any], budget: int) -> None:
+        """A resumed run is running again, with the settings and budget it resumes with (a new
+        max time, a larger budget)."""
         with self._lock, self._transaction():
             self._connection.execute(
-                "UPDATE runs SET status = 'running', ended_at = NULL, message = NULL WHERE id = ?",
-                (run_id,),
+                "UPDATE runs SET status = 'running', ended_at = NULL, message = NULL, "
+                "settings = ?, budget = ? WHERE id = ?",
+                (json.dumps(settings), budget, run_id),
             )
-            if settings is not None:
-                self._connection.execute(
-                    "UPDATE runs SET settings = ? WHERE id = ?", (json.dumps(settings), run_id)
-                )
-            if budget is not None:
-                self._connection.execute(
-                    "UPDATE runs SET budget = ? WHERE id = ?", (budget, run_id)
-                )
 
     def finish_run(
         self, run_id: int, status: str, wall_time: float, message: str | None = None
