@@ -124,10 +124,15 @@ def test_a_run_stopped_at_its_max_time_resumes_with_more_time_to_the_unstopped_r
         stopped = run(limited, ga, info, store)
         assert 0 < stopped.evaluations < 400
         assert store.run(stopped.run_id).message.startswith("stopped at its max time")
+        first_session = store.run(stopped.run_id).wall_time
+        assert first_session == pytest.approx(stopped.wall_time, abs=0.05)
         again = resume(stopped.run_id, store, ga, info)  # another 0.2 s
         assert stopped.evaluations < again.evaluations < 400
         done = resume(stopped.run_id, store, ga, info, max_time=60.0)
         record = store.run(stopped.run_id)
+        # the stored wall time is the sum of the three sessions', each result its own session's
+        total = first_session + again.wall_time + done.wall_time
+        assert record.wall_time == pytest.approx(total, abs=0.05)
         assert (done.evaluations, record.status, record.message) == (400, "finished", None)
         assert record.settings["max_time"] == 60.0
         assert done.best_fitness == whole.best_fitness

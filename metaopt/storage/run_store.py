@@ -411,13 +411,15 @@ class RunStore:
         self, run_id: int, status: str, wall_time: float, message: str | None = None
     ) -> None:
         """Flush, then record the run's end, status and an optional message; this process
-        no longer owns it."""
+        no longer owns it. ``wall_time`` is this session's: a resumed run's stored wall time
+        is the sum of its sessions' (a killed session's is not known)."""
         if status not in RUN_STATUSES:
             raise ValueError(f"unknown run status {status!r}")
         self.flush()
         with self._lock, self._transaction():
             self._connection.execute(
-                "UPDATE runs SET status = ?, ended_at = ?, wall_time = ?, message = ? WHERE id = ?",
+                "UPDATE runs SET status = ?, ended_at = ?, wall_time = COALESCE(wall_time, 0) + ?, "
+                "message = ? WHERE id = ?",
                 (status, _now(), wall_time, message, run_id),
             )
             self._release(run_id)
