@@ -157,6 +157,8 @@
 # 70 s; stage 1b gets the time of the three runs left out), on fresh seeds 82-84. Design P is
 # design O with STAGE1_ENGINE=mujoco+ode STAGE1_RUNS=6 STAGE1_TIME=420 LATER_STAGES=620, on fresh
 # seeds 85-87 (pilot R: design O's command on seed 84 with only STAGE1_ENGINE=mujoco+ode added).
+# Design R is design H's command at commit 2144e1a's fixed score, with LATER_STAGES=360 (H's
+# split of the time), on fresh seeds 95-97.
 # This is the thirteenth search, run after commit d228dc7 (nao-walk charges the flight
 # penalty past engine_cap). STAGE1B_START=all gives the twelfth's stage 1b, from all four
 # stage-1 bests; the twelfth (commit f1b7010) and the thirteenth's pilot ran before d228dc7.
