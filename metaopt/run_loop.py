@@ -514,8 +514,9 @@ class _Session:
             # last one, and the evaluations stored since are reused when it is resumed.
             final = (self.run_id, self._checkpoint()) if status == "finished" else None
             self.store.flush(checkpoint=final)
-            self.store.finish_run(self.run_id, status, time.perf_counter() - started, message)
-        return self._result(status, time.perf_counter() - started)
+            wall_time = time.perf_counter() - started  # one figure: the stored and the reported
+            self.store.finish_run(self.run_id, status, wall_time, message)
+        return self._result(status, wall_time)
 
     def _warn_of_waiting_workers(self, batch: int, workers: int) -> None:
         """SettingWarning when a sync batch has fewer evaluations than the executor has
