@@ -159,6 +159,9 @@
 # seeds 85-87 (pilot R: design O's command on seed 84 with only STAGE1_ENGINE=mujoco+ode added).
 # Design R is design H's command at commit 2144e1a's fixed score, with LATER_STAGES=360 (H's
 # split of the time), on fresh seeds 95-97.
+# Design S is design Q with STAGE1B_SET's "duration=10 engine_cap=3.5" (stage 1b walks 7 s, not
+# 12, capped at the same 0.5 m/s) and STAGE1B_BUDGET=3000, on fresh seeds 98-100. Whatever stage 1
+# or stage 1b walked, the basin race, the re-check, the race and the table walk the standard 15 s.
 # This is the thirteenth search, run after commit d228dc7 (nao-walk charges the flight
 # penalty past engine_cap). STAGE1B_START=all gives the twelfth's stage 1b, from all four
 # stage-1 bests; the twelfth (commit f1b7010) and the thirteenth's pilot ran before d228dc7.
@@ -250,6 +253,7 @@ if [ -n "${STAGE1_TIME:-}" ] && [ -n "${DEADLINE:-}" ] \
 fi
 least_retry=60  # seconds: FLAT_BEST starts a pipeline again only with this much time to give it
 walk=(--set controller=steered)
+standard_walk=(--set duration=15)  # the later stages' episode, whatever stage 1 or 1b walked
 # Every stage-1 and stage-1b run's settings but its seed, start, time and store, the knobs' --set
 # after the script's (a later --set of a name wins); both are checked before stage 1 starts
 # (metaopt run --check), so that a bad value is refused in one line and costs no search time.
@@ -295,7 +299,7 @@ race_basins() {  # $1: the ranking CSV; the rest: the runs whose bests are raced
     shift
     metaopt robustness "$@" --cells nominal \
         --seeds 8 --seed 3 "${basin_goals[@]}" --set fitness=progress \
-        --set flight_penalty=50 --set duration=15 --workers 2 --db "$db" \
+        --set flight_penalty=50 "${standard_walk[@]}" --workers 2 --db "$db" \
         --ranking "$ranking"
 }
 time_share() {  # pipeline $1's share of the time left to DEADLINE, seconds (a day without one)
@@ -364,13 +368,15 @@ for p in $(seq 1 "$pipelines"); do
     finals+=("$run")
 done
 metaopt robustness "${finals[@]}" --top "$top" --seeds 1 --seed 1 --set fitness=robust \
-    --set flight_penalty=100 --workers 2 --db "$db" --csv "robust-walk-s$seed-top.csv" \
-    --ranking "robust-walk-s$seed-top-ranking.csv" | tee "robust-walk-s$seed-top.txt"
+    --set flight_penalty=100 "${standard_walk[@]}" --workers 2 --db "$db" \
+    --csv "robust-walk-s$seed-top.csv" --ranking "robust-walk-s$seed-top-ranking.csv" \
+    | tee "robust-walk-s$seed-top.txt"
 # shellcheck disable=SC2046  # one word per finalist
 metaopt robustness $(first "robust-walk-s$seed-top-ranking.csv" 3) --seeds "$race_seeds" --seed 2 \
-    --set fitness=robust --set flight_penalty=100 \
+    --set fitness=robust --set flight_penalty=100 "${standard_walk[@]}" \
     --goal "speed>=0.44" --goal "fell<=$race_fell" --goal "|drift|<=0.3" --goal "flight<=0.05" \
     --workers 2 --db "$db" --csv "robust-walk-s$seed-race.csv" \
     --ranking "robust-walk-s$seed-race-ranking.csv" | tee "robust-walk-s$seed-race.txt"
-metaopt robustness "$(first "robust-walk-s$seed-race-ranking.csv" 1)" --seeds 10 --workers 2 \
-    --db "$db" --csv "robust-walk-s$seed.csv" --figure "robust-walk-s$seed.png"
+metaopt robustness "$(first "robust-walk-s$seed-race-ranking.csv" 1)" --seeds 10 \
+    "${standard_walk[@]}" --workers 2 --db "$db" --csv "robust-walk-s$seed.csv" \
+    --figure "robust-walk-s$seed.png"
