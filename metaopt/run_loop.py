@@ -328,7 +328,9 @@ def resume(
 ) -> RunResult:
     """Continue a stored run that did not finish, that stopped at its max time with budget
     left, or (given a larger ``budget``) that spent its budget, from its last checkpoint;
-    ``max_time`` and ``budget`` replace the stored ones (stored with the run).
+    ``max_time`` and ``budget`` replace the stored ones (stored with the run). ``budget`` need
+    only exceed the evaluations made, so a run stopped early can be given N more: its count
+    plus N, below its stored budget too.
 
     In sync mode evaluations stored after the checkpoint are reused, not recomputed, so the
     resumed run ends exactly where an uninterrupted one would (one given the time or budget at
@@ -336,11 +338,13 @@ def resume(
     the one it started with: past it the schedule stays at its end).
     """
     record = store.run(run_id)
-    if budget is not None and budget <= record.budget:
-        raise ConfigError(
-            f"budget must be more than run {record.id}'s budget of {record.budget} "
-            f"evaluations, got {budget}"
-        )
+    if budget is not None:
+        made = store.evaluation_counts(record.id).stored
+        if budget <= made:
+            raise ConfigError(
+                f"budget must be more than the {made} evaluations run {record.id} has made "
+                f"(evaluations in all, not more), got {budget}"
+            )
     stopped_early = (record.message or "").startswith(MAX_TIME_STOP)
     if record.status == "finished" and not stopped_early and budget is None:
         raise ConfigError(

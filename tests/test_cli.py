@@ -164,15 +164,15 @@ def test_run_stops_at_its_max_time_having_done_what_a_longer_run_does_first(tmp_
 
 def test_resume_with_a_larger_budget_continues_a_run_that_spent_its_budget(tmp_path):
     """`metaopt resume RUN --budget N` continues a finished CMA-ES run (no schedule over its
-    budget) as the run given N at once; a budget not above the stored one, or none for a
-    finished run, is refused in one line and leaves the run as it was."""
+    budget) as the run given N at once; a budget not above the evaluations it has made, or none
+    for a finished run, is refused in one line and leaves the run as it was."""
     cmaes = {"METAOPT_LOAD_PLUGINS": "cma_es,functions"}
     for budget in ("60", "120"):
         done = metaopt_cli("run", "-o", "cmaes", "-p", "sphere", "--budget", budget, "--seed",
                            "4", cwd=tmp_path, env=cmaes)  # fmt: skip
         assert done.returncode == 0, done.stderr
     for args, says in (((), "already finished; nothing to resume"),
-                       (("--budget", "60"), "budget must be more than run 1's budget of 60"),
+                       (("--budget", "60"), "more than the 60 evaluations run 1 has made"),
                        (("--budget", "0"), "Invalid value for '--budget'")):  # fmt: skip
         refused = metaopt_cli("resume", "1", *args, cwd=tmp_path, env=cmaes)
         assert refused.returncode == 2 and says in refused.stderr

@@ -158,7 +158,7 @@ def test_a_run_that_spent_its_budget_resumes_with_a_larger_one_to_the_larger_run
                     store)  # fmt: skip
         with pytest.raises(ConfigError, match="already finished; nothing to resume"):
             resume(spent.run_id, store, cmaes, sphere)
-        with pytest.raises(ConfigError, match="budget must be more than run 2's budget of 40"):
+        with pytest.raises(ConfigError, match="more than the 40 evaluations run 2 has made"):
             resume(spent.run_id, store, cmaes, sphere, budget=40)
         assert store.run(spent.run_id).budget == 40  # a refused budget is not stored
         more = resume(spent.run_id, store, cmaes, sphere, budget=80)
@@ -210,6 +210,29 @@ def _stopping_sphere(after: int) -> ProblemInfo:
         return problem
 
     return ProblemInfo(sphere.name, sphere.description, factory=factory, params=sphere.params)
+
+
+def test_a_stopped_run_resumes_with_a_budget_below_its_own_to_that_many_evaluations(tmp_path):
+    """A run stopped early (here by Ctrl-C at evaluation 30 of 80) is given N more by a budget
+    of its count plus N, below its stored budget: it ends there, row for row the first rows of
+    the run that never stopped; a budget not above its count is refused and not stored."""
+    spec = RunSpec("cmaes", "sphere", 80, 5, problem_params={"dim": 3})
+    plugins = registry()
+    cmaes = plugins.optimizer("cmaes")
+    with RunStore(tmp_path / "runs.db") as store:
+        whole = run(spec, cmaes, plugins.problem("sphere"), store)
+        with pytest.raises(KeyboardInterrupt):
+            run(spec, cmaes, _stopping_sphere(after=30), store)
+        stopped = store.runs()[-1]
+        made = store.evaluation_counts(stopped.id).stored
+        assert 0 < made < 50
+        with pytest.raises(ConfigError, match=f"more than the {made} evaluations run 2 has"):
+            resume(stopped.id, store, cmaes, plugins.problem("sphere"), budget=made)
+        assert store.run(stopped.id).budget == 80
+        more = resume(stopped.id, store, cmaes, plugins.problem("sphere"), budget=50)
+        record = store.run(stopped.id)
+        assert (more.evaluations, record.budget, record.status) == (50, 50, "finished")
+        assert _stored(store, stopped.id) == _stored(store, whole.run_id)[:50]
 
 
 def test_bad_budget_and_parameters_are_config_errors(tmp_path):

@@ -344,8 +344,9 @@ def run_command(
     "--budget",
     type=BUDGET,
     default=None,
-    help="Evaluations in all, more than the run's stored budget (stored with the run): "
-    "continues a run that spent its budget.",
+    help="Evaluations in all, more than the run has made (stored with the run, in place of "
+    "its budget): continues a run that spent its budget, or gives a run stopped early N more "
+    "(its evaluations plus N).",
 )
 @scheduling_options
 @db_option
