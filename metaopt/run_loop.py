@@ -49,6 +49,8 @@ CHECKPOINT_INTERVAL = 1.0
 #: budget on a problem set up so that nothing can succeed (docs/index.md).
 ALL_FAILED_STOP = 10
 MODES = ("sync", "async")
+#: who shares seeds (common random numbers): nobody, every candidate of the run, or of a batch
+COMMON_SEEDS = ("off", "run", "batch")
 
 
 class Progress(Protocol):
@@ -77,9 +79,10 @@ class RunSettings:
     aggregate: str = "mean"
     #: seconds an evaluation may take before it is stopped and stored as failed (None = no limit)
     time_limit: float | None = None
-    #: every candidate's resample evaluations use the same resample seeds (common random
-    #: numbers, docs/scaling.md), instead of seeds of their own
-    common_seeds: bool = False
+    #: common random numbers (docs/scaling.md): "run" gives every candidate the same resample
+    #: seeds, "batch" every candidate of a sync batch (fresh seeds per batch), "off" (the
+    #: default) each evaluation a seed of its own. Runs stored as True/False read as run/off.
+    common_seeds: str = "off"
     #: stop once a fitness this good is found: at or below it (minimize), at or above (maximize)
     target: float | None = None
     #: seconds of wall time (from this start or resume, the workers' start-up included) after
@@ -102,6 +105,8 @@ class RunSettings:
     screen: bool = False
 
     def __post_init__(self) -> None:
+        if isinstance(self.common_seeds, bool):
+            self.common_seeds = "run" if self.common_seeds else "off"
         if self.start is not None and all(isinstance(v, int | float) for v in self.start):
             self.start = [list(self.start)]
 
@@ -115,6 +120,15 @@ class RunSettings:
             raise ConfigError(f"batch must be 0 (the optimizer's own) or more, got {self.batch}")
         if self.resample < 1:
             raise ConfigError(f"resample must be at least 1, got {self.resample}")
+        if self.common_seeds not in COMMON_SEEDS:
+            raise ConfigError(
+                f"unknown common seeds {self.common_seeds!r}; accepted: {', '.join(COMMON_SEEDS)}"
+            )
+        if self.common_seeds == "batch" and self.mode != "sync":
+            raise ConfigError(
+                "common seeds per batch are shared by the candidates of a sync batch: "
+                "run in sync mode (no --mode async), or use --common-seeds run"
+            )
         if budget < self.resample:
             raise ConfigError(
                 f"budget {budget} is smaller than resample {self.resample}: "
@@ -424,10 +438,15 @@ class _Session:
         self.problem_key = problem_key(problem_info.factory, problem_params)
         self.sign = -1.0 if Sense(problem.sense) is Sense.MAXIMIZE else 1.0
         self.resample = self.settings.resample
+        #: sync mode: candidates asked per batch
+        self.batch_size = self.settings.batch or optimizer.batch_size
+        common = self.settings.common_seeds
         self.seeds = (
-            CommonSeeds(spec.seed, self.resample)
-            if self.settings.common_seeds
-            else EvaluationSeeds(spec.seed)
+            EvaluationSeeds(spec.seed)
+            if common == "off"
+            else CommonSeeds(
+                spec.seed, self.resample, self.batch_size if common == "batch" else None
+            )
         )
         self.total = (spec.budget // self.resample) * self.resample
         self.told_below = 0  # every candidate whose evaluations all lie below this is told
@@ -541,7 +560,7 @@ class _Session:
             )
 
     def _run_sync(self, executor: Executor, progress: Progress | None) -> None:
-        batch_size = self.settings.batch or self.optimizer.batch_size
+        batch_size = self.batch_size
         self._warn_of_waiting_workers(batch_size, executor.workers)
         next_index = self.told_below
         while next_index < self.total and not self.stopping:

@@ -29,14 +29,23 @@ class EvaluationSeeds:
 
 
 class CommonSeeds:
-    """Common random numbers: evaluation ``index`` of a run resampling every candidate
-    ``count`` times gets sample ``index % count``'s seed, so every candidate is evaluated on
-    the same ``count`` seeds and the differences between candidates are not seed noise."""
+    """Common random numbers: every candidate of a group is evaluated on the same ``count``
+    seeds, so the differences between them are what they do, not seed noise.
 
-    def __init__(self, run_seed: int, count: int) -> None:
+    The group is the whole run (``batch_size`` None: the same ``count`` seeds throughout) or
+    each batch of ``batch_size`` candidates (fresh seeds per batch, so a long run does not tune
+    itself to a few worlds while the candidates compared in one batch still meet the same ones).
+    """
+
+    def __init__(self, run_seed: int, count: int, batch_size: int | None = None) -> None:
         self._seeds = EvaluationSeeds(run_seed)
         self._count = count
+        self._batch_size = batch_size
 
     def __call__(self, index: int) -> int:
-        """The seed of evaluation ``index``: that of sample ``index % count``."""
-        return self._seeds(index % self._count)
+        """The seed of evaluation ``index`` (sample ``index % count`` of its candidate)."""
+        sample = index % self._count
+        if self._batch_size is None:
+            return self._seeds(sample)
+        batch = index // self._count // self._batch_size
+        return self._seeds(batch * self._count + sample)

@@ -52,6 +52,10 @@
 # every candidate, in place of one cell drawn per evaluation. The whole searches on fresh seeds
 # 15-16 (17 was stopped) ran STAGE1B_RESAMPLE=3 STAGE1B_BUDGET=540 STAGE1B_SET="flight_allowed=0.035
 # engine_score=worst worlds=standard".
+# STAGE1B_COMMON=batch gives the candidates of each stage-1b batch (a CMA-ES generation) the same
+# evaluation seeds, fresh ones per batch (--common-seeds batch): the candidates CMA-ES ranks
+# against each other meet the same world, push and noise. With STAGE1B_RESAMPLE it replaces the
+# run-wide seeds (run). Design T is design S with STAGE1B_COMMON=batch.
 # STAGE1B_SCREEN=1 screens stage 1b (metaopt run --screen; with STAGE1B_OPTIMIZER=cmaes and
 # engine_score=worst in STAGE1B_SET): each candidate walks on MuJoCo and ODE first, and on
 # PyBullet only where it can still rank in CMA-ES's better half, which changes no step of
@@ -171,7 +175,7 @@
 # script at commit 5ed7043, the seventh at 3c42de4, the sixth at 6e1fe34, the fifth at
 # 3c8db53, the fourth at ff6956d, the third at abce00d, the second at 9d03e62.
 set -euo pipefail
-seed=${1:?usage: [DEADLINE=SECONDS LATER_STAGES=SECONDS STAGE1_TIME=SECONDS STAGE1_OPTIMIZER=NAME STAGE1_BATCH=B BASIN_FELL=RATE RACE_FELL=RATE RACE_SEEDS=N STAGE1B_BUDGET=N STAGE1B_OPTIMIZER=NAME STAGE1B_BATCH=B STAGE1B_SCREEN=1 PIPELINES=N STAGE1_RUNS=R STAGE1B_RESAMPLE=K TOP=K STAGE1_ENGINE=E STAGE1_SET="NAME=VALUE ..." STAGE1B_START=all|raced|pool STAGE1B_SET="NAME=VALUE ..." STAGE1B_CELLS="NAME,..." FLAT_BEST=METRES FLAT_FELL=SHARE] robust-walk-search.sh SEED}
+seed=${1:?usage: [DEADLINE=SECONDS LATER_STAGES=SECONDS STAGE1_TIME=SECONDS STAGE1_OPTIMIZER=NAME STAGE1_BATCH=B BASIN_FELL=RATE RACE_FELL=RATE RACE_SEEDS=N STAGE1B_BUDGET=N STAGE1B_OPTIMIZER=NAME STAGE1B_BATCH=B STAGE1B_SCREEN=1 PIPELINES=N STAGE1_RUNS=R STAGE1B_RESAMPLE=K STAGE1B_COMMON=run|batch TOP=K STAGE1_ENGINE=E STAGE1_SET="NAME=VALUE ..." STAGE1B_START=all|raced|pool STAGE1B_SET="NAME=VALUE ..." STAGE1B_CELLS="NAME,..." FLAT_BEST=METRES FLAT_FELL=SHARE] robust-walk-search.sh SEED}
 stage1b_budget=${STAGE1B_BUDGET:-600}
 stage1b_optimizer=${STAGE1B_OPTIMIZER:-hs}
 stage1b_batch=${STAGE1B_BATCH:-2}
@@ -266,7 +270,9 @@ stage1b_run=(-o "$stage1b_optimizer" -p nao-walk --budget "$stage1b_budget" --wo
     --set fitness=progress)
 if [ -n "${STAGE1B_SCREEN:-}" ]; then stage1b_run+=(--screen); fi
 if [ -n "${STAGE1B_RESAMPLE:-}" ]; then
-    stage1b_run+=(--resample "$STAGE1B_RESAMPLE" --common-seeds)
+    stage1b_run+=(--resample "$STAGE1B_RESAMPLE" --common-seeds "${STAGE1B_COMMON:-run}")
+elif [ -n "${STAGE1B_COMMON:-}" ]; then
+    stage1b_run+=(--common-seeds "$STAGE1B_COMMON")
 fi
 for pair in ${STAGE1B_SET:-}; do stage1b_run+=(--set "$pair"); done
 if [ -n "${STAGE1B_CELLS:-}" ]; then stage1b_run+=(--set "world_cells=$STAGE1B_CELLS"); fi

@@ -40,6 +40,7 @@ from metaopt.reporting.history import run_history
 from metaopt.reporting.recent import DEFAULT_WINDOW, recent_figures
 from metaopt.run_loop import (
     AGGREGATES,
+    COMMON_SEEDS,
     MODES,
     RunInterrupted,
     RunResult,
@@ -199,8 +200,12 @@ def list_plugins(name: str | None) -> None:
 )
 @click.option(
     "--common-seeds",
-    is_flag=True,
-    help="Evaluate every candidate on the same --resample seeds (common random numbers).",
+    type=click.Choice(COMMON_SEEDS),
+    is_flag=False,
+    flag_value="run",
+    default="off",
+    help="Common random numbers: every candidate on the same --resample seeds (run, what the bare "
+    "flag means), or the candidates of each sync batch, fresh seeds per batch (batch).",
 )
 @click.option(
     "--screen",
@@ -271,7 +276,7 @@ def run_command(
     batch: int,
     resample: int,
     aggregate: str,
-    common_seeds: bool,
+    common_seeds: str,
     screen: bool,
     time_limit: float | None,
     max_time: float | None,

@@ -198,8 +198,11 @@ def settings_text(settings: dict[str, Any]) -> str:
         parts.append(f"batch {settings['batch']}")
     if settings.get("resample", 1) > 1:
         parts.append(f"resample {settings['resample']} ({settings.get('aggregate', 'mean')})")
-    if settings.get("common_seeds"):
+    common = settings.get("common_seeds")  # True in runs stored before "batch" existed
+    if common in (True, "run"):
         parts.append("common seeds")
+    elif common == "batch":
+        parts.append("common seeds per batch")
     if settings.get("screen"):
         parts.append("screened")
     if settings.get("time_limit") is not None:
