@@ -203,6 +203,7 @@ def test_the_flat_check_also_reads_the_share_of_the_last_candidates_that_fell(tm
         ("STAGE1_OPTIMIZER", "bogus", "unknown optimizer 'bogus'", {}),
         ("STAGE1_BATCH", "-1", "'--batch': -1 is not in the range", {}),
         ("STAGE1B_OPTIMIZER", "bogus", "unknown optimizer 'bogus'", {}),
+        ("STAGE1B_COMMON", "generation", "'generation' is not one of 'off', 'run', 'batch'", {}),
         ("STAGE1B_SET", "engine_score=best", "engine_score", {}),
         ("STAGE1B_SCREEN", "1", "no cheaper bound to screen with", {}),
         ("STAGE1B_SCREEN", "1", "reads every candidate's fitness",

@@ -55,7 +55,7 @@
 # STAGE1B_COMMON=batch gives the candidates of each stage-1b batch (a CMA-ES generation) the same
 # evaluation seeds, fresh ones per batch (--common-seeds batch): the candidates CMA-ES ranks
 # against each other meet the same world, push and noise. With STAGE1B_RESAMPLE it replaces the
-# run-wide seeds (run). Design T is design S with STAGE1B_COMMON=batch.
+# run-wide seeds (run). Design T is design S with STAGE1B_COMMON=batch and LATER_STAGES=540.
 # STAGE1B_SCREEN=1 screens stage 1b (metaopt run --screen; with STAGE1B_OPTIMIZER=cmaes and
 # engine_score=worst in STAGE1B_SET): each candidate walks on MuJoCo and ODE first, and on
 # PyBullet only where it can still rank in CMA-ES's better half, which changes no step of
