@@ -276,6 +276,17 @@ def _prepared(spec: RunSpec, optimizer_info: OptimizerInfo, problem_info: Proble
         unfit = optimizer.budget_warning(spec.budget // spec.settings.resample)
         if unfit is not None:
             warnings.warn(f"{optimizer_info.name}: {unfit}", SettingWarning, stacklevel=3)
+        if (
+            spec.settings.common_seeds == "batch"
+            and (spec.settings.batch or optimizer.batch_size) == 1
+        ):
+            warnings.warn(
+                f"{optimizer_info.name} asks one candidate per batch: with common seeds per "
+                "batch every candidate still meets seeds of its own; give --batch N for N "
+                "candidates to share them, or use --common-seeds run",
+                SettingWarning,
+                stacklevel=3,
+            )
         spec = _with_start_points(spec, problem.space, optimizer)
         if spec.settings.screen:
             _check_screening(spec, optimizer_info.name, optimizer, problem_info.name, problem)

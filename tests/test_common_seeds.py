@@ -5,10 +5,13 @@ the seeds within each sync batch only, with fresh seeds per batch."""
 
 from __future__ import annotations
 
+import warnings
+
 import numpy as np
 import pytest
 
 from metaopt import ConfigError, Evaluation, Problem, ProblemInfo, Sense, Space
+from metaopt.errors import SettingWarning
 from metaopt.plugins import registry
 from metaopt.run_loop import RunSettings, RunSpec, run
 from metaopt.storage.run_store import RunStore
@@ -89,6 +92,19 @@ def test_common_seeds_per_batch_are_shared_within_a_batch_and_fresh_for_each(
     assert [(e.x.tobytes(), e.fitness, e.seed) for e in evaluations] == [
         (e.x.tobytes(), e.fitness, e.seed) for e in again
     ]
+
+
+def test_common_seeds_per_batch_of_one_candidate_are_flagged_as_seeds_of_its_own(tmp_path):
+    info = ProblemInfo("noisy-line", "test", factory=NoisyLine)
+    spec = RunSpec("hs", "noisy-line", 40, 5, settings=RunSettings(common_seeds="batch"))
+    with RunStore(tmp_path / "a.db") as store, pytest.warns(SettingWarning, match="--batch N"):
+        run(spec, registry().optimizer("hs"), info, store)
+    with RunStore(tmp_path / "b.db") as store, warnings.catch_warnings():
+        warnings.simplefilter("error", SettingWarning)
+        batched = RunSpec(
+            "hs", "noisy-line", 40, 5, settings=RunSettings(common_seeds="batch", batch=3)
+        )
+        run(batched, registry().optimizer("hs"), info, store)
 
 
 def test_common_seeds_per_batch_refuse_async_mode() -> None:
