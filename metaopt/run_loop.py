@@ -53,6 +53,14 @@ MODES = ("sync", "async")
 COMMON_SEEDS = ("off", "run", "batch")
 
 
+def common_seeds_mode(stored: bool | str) -> str:
+    """The common-seeds setting as one of COMMON_SEEDS: runs stored before "batch" existed
+    hold True (the run's seeds) or False (off)."""
+    if isinstance(stored, bool):
+        return "run" if stored else "off"
+    return stored
+
+
 class Progress(Protocol):
     """What the run loop tells an observer (the CLI's progress bar) as a run goes on."""
 
@@ -105,10 +113,13 @@ class RunSettings:
     screen: bool = False
 
     def __post_init__(self) -> None:
-        if isinstance(self.common_seeds, bool):
-            self.common_seeds = "run" if self.common_seeds else "off"
+        self.common_seeds = common_seeds_mode(self.common_seeds)
         if self.start is not None and all(isinstance(v, int | float) for v in self.start):
             self.start = [list(self.start)]
+
+    def batch_size(self, optimizer: Optimizer) -> int:
+        """Candidates asked per sync batch: the given batch, or the optimizer's own."""
+        return self.batch or optimizer.batch_size
 
     def check(self, budget: int) -> None:
         """ConfigError naming the bad setting."""
@@ -276,10 +287,7 @@ def _prepared(spec: RunSpec, optimizer_info: OptimizerInfo, problem_info: Proble
         unfit = optimizer.budget_warning(spec.budget // spec.settings.resample)
         if unfit is not None:
             warnings.warn(f"{optimizer_info.name}: {unfit}", SettingWarning, stacklevel=3)
-        if (
-            spec.settings.common_seeds == "batch"
-            and (spec.settings.batch or optimizer.batch_size) == 1
-        ):
+        if spec.settings.common_seeds == "batch" and spec.settings.batch_size(optimizer) == 1:
             warnings.warn(
                 f"{optimizer_info.name} asks one candidate per batch: with common seeds per "
                 "batch every candidate still meets seeds of its own; give --batch N for N "
@@ -450,7 +458,7 @@ class _Session:
         self.sign = -1.0 if Sense(problem.sense) is Sense.MAXIMIZE else 1.0
         self.resample = self.settings.resample
         #: sync mode: candidates asked per batch
-        self.batch_size = self.settings.batch or optimizer.batch_size
+        self.batch_size = self.settings.batch_size(optimizer)
         common = self.settings.common_seeds
         self.seeds = (
             EvaluationSeeds(spec.seed)

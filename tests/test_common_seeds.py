@@ -107,7 +107,7 @@ def test_common_seeds_per_batch_of_one_candidate_are_flagged_as_seeds_of_its_own
         run(batched, registry().optimizer("hs"), info, store)
 
 
-def test_common_seeds_per_batch_refuse_async_mode() -> None:
+def test_common_seeds_refuse_an_unknown_value_and_batches_in_async_mode() -> None:
     with pytest.raises(ConfigError, match="sync mode"):
         RunSettings(common_seeds="batch", mode="async").check(30)
     with pytest.raises(ConfigError, match="accepted: off, run, batch"):

@@ -32,7 +32,7 @@ from metaopt.assessment.search_medians import (
 from metaopt.params import Param
 from metaopt.reporting.history import RunHistory
 from metaopt.reporting.recent import RecentFigures
-from metaopt.run_loop import RunResult
+from metaopt.run_loop import RunResult, common_seeds_mode
 from metaopt.storage.run_store import CandidateRecord, EvaluationCounts, RunRecord
 
 PROGRESS_REFRESH = 0.1
@@ -198,11 +198,9 @@ def settings_text(settings: dict[str, Any]) -> str:
         parts.append(f"batch {settings['batch']}")
     if settings.get("resample", 1) > 1:
         parts.append(f"resample {settings['resample']} ({settings.get('aggregate', 'mean')})")
-    common = settings.get("common_seeds")  # True in runs stored before "batch" existed
-    if common in (True, "run"):
-        parts.append("common seeds")
-    elif common == "batch":
-        parts.append("common seeds per batch")
+    common = common_seeds_mode(settings.get("common_seeds", "off"))
+    if common != "off":
+        parts.append("common seeds" + (" per batch" if common == "batch" else ""))
     if settings.get("screen"):
         parts.append("screened")
     if settings.get("time_limit") is not None:
