@@ -48,6 +48,7 @@ def refusal(tmp_path: Path, path: str, knob: str, value: str, **knobs: str) -> s
         ("RACE_FELL", "0,05", "a fall rate from 0 to 1"),
         ("DEADLINE", "30m", "a whole number, 1 or more"),
         ("LATER_STAGES", "6m", "a whole number, 1 or more"),
+        ("LATER_STAGES", "automatic", "a whole number, 1 or more, or auto"),
         ("STAGE1_TIME", "0", "a whole number, 1 or more"),
         ("RACE_SEEDS", "ten", "a whole number, 1 or more"),
         ("FLAT_BEST", "1m", "a fitness in metres, 0 or more"),
@@ -104,6 +105,58 @@ def test_the_later_stages_time_needs_a_deadline_that_leaves_time(tmp_path):
         tmp_path, "/usr/bin:/bin", "LATER_STAGES", "1800", DEADLINE="1800", STAGE1B_START="pool"
     )
     assert "DEADLINE must leave time" in line and "more than 1800" in line
+
+
+def test_auto_later_stages_keep_nothing_before_the_basin_race_is_timed(tmp_path):
+    """LATER_STAGES=auto passes the knob check and keeps no time until the basin race: stage 1
+    may then take all of a 1800 s deadline but a second."""
+    line = refusal(
+        tmp_path,
+        "/usr/bin:/bin",
+        "STAGE1_TIME",
+        "1800",
+        DEADLINE="1800",
+        LATER_STAGES="auto",
+        STAGE1B_START="pool",
+    )
+    assert "before DEADLINE: at most 1799" in line and "kept" not in line
+
+
+def auto_later_stages(race_seconds: int, basins: int, **knobs: str) -> int:
+    """The script's own auto_later_stages for a basin race of race_seconds over basins basins,
+    with the script's defaults for TOP, PIPELINES and RACE_SEEDS unless knobs set them."""
+    source = SCRIPT.read_text()
+    function = re.search(r"^auto_later_stages\(\) \{.*?^\}$", source, re.S | re.M).group(0)
+    table = re.search(r"^table_episodes=\d+$", source, re.M).group(0)
+    values = {"top": "3", "pipelines": "3", "race_seeds": "10", **knobs}
+    assigned = "\n".join(f"{name}={value}" for name, value in values.items())
+    done = subprocess.run(
+        [
+            "bash",
+            "-c",
+            f"{table}\n{assigned}\n{function}\nauto_later_stages {race_seconds} {basins}",
+        ],
+        capture_output=True,
+        text=True,
+        check=True,
+    )
+    return int(done.stdout)
+
+
+def test_auto_later_stages_scale_the_basin_race_by_the_later_stages_episodes():
+    """Design T's shape (one pipeline, TOP=6, the race at 10 seeds, 7 basins): the later stages
+    walk 31 * (6 + 30 + 10) = 1426 episodes against the basin race's 7 * 24 = 168, so a 50 s
+    race keeps 50 * 1426 / 168 s, a fifth more (509 s) and 20 s for the commands; the time
+    grows with the race's, the race's seeds and the re-check's candidates."""
+    design_t = {"top": "6", "pipelines": "1"}
+    assert auto_later_stages(50, 7, **design_t) == 529
+    assert auto_later_stages(100, 7, **design_t) == 1038
+    assert auto_later_stages(50, 14, **design_t) == 274
+    assert (
+        auto_later_stages(50, 7, race_seeds="5", **design_t)
+        < 529
+        < auto_later_stages(50, 7, top="12", pipelines="1")
+    )
 
 
 def test_flat_best_needs_the_pooled_basins(tmp_path):

@@ -100,6 +100,12 @@
 # Seeds 30-35 ran with 330 s (those stages took 253-294 s on seeds 22-24); on seed 34 they
 # took 330 s and the search 1801 s.
 # Seeds 36-58 ran with 360 s; on seed 56 they took 365 s and the search 1810 s.
+# LATER_STAGES=auto sets that time from the basin race, which walks the same 15 s episodes on
+# the same three engines just before stage 1b: its seconds per episode, times the later stages'
+# episodes, a fifth more, and 20 s for their three commands. The later stages took 0.92-1.09
+# times the basin race's time per episode in designs H and R (H: race 42-52 s for 240 episodes,
+# later stages 272-340 s for 1426; R: 74-84 s, 405-459 s), so a fixed LATER_STAGES starves
+# stage 1b on a fast day and overruns on a slow one.
 # STAGE1_TIME=SECONDS (with STAGE1B_START=pool) gives every stage-1 run together at most that
 # long: each run gets an even share of the stage-1 time left (metaopt run --max-time), so that a
 # slower day cuts stage 1's evaluations, not stage 1b's time. Design D's stage 1 took 668-747 s,
@@ -175,7 +181,7 @@
 # script at commit 5ed7043, the seventh at 3c42de4, the sixth at 6e1fe34, the fifth at
 # 3c8db53, the fourth at ff6956d, the third at abce00d, the second at 9d03e62.
 set -euo pipefail
-seed=${1:?usage: [DEADLINE=SECONDS LATER_STAGES=SECONDS STAGE1_TIME=SECONDS STAGE1_OPTIMIZER=NAME STAGE1_BATCH=B BASIN_FELL=RATE RACE_FELL=RATE RACE_SEEDS=N STAGE1B_BUDGET=N STAGE1B_OPTIMIZER=NAME STAGE1B_BATCH=B STAGE1B_SCREEN=1 PIPELINES=N STAGE1_RUNS=R STAGE1B_RESAMPLE=K STAGE1B_COMMON=run|batch TOP=K STAGE1_ENGINE=E STAGE1_SET="NAME=VALUE ..." STAGE1B_START=all|raced|pool STAGE1B_SET="NAME=VALUE ..." STAGE1B_CELLS="NAME,..." FLAT_BEST=METRES FLAT_FELL=SHARE] robust-walk-search.sh SEED}
+seed=${1:?usage: [DEADLINE=SECONDS LATER_STAGES=SECONDS|auto STAGE1_TIME=SECONDS STAGE1_OPTIMIZER=NAME STAGE1_BATCH=B BASIN_FELL=RATE RACE_FELL=RATE RACE_SEEDS=N STAGE1B_BUDGET=N STAGE1B_OPTIMIZER=NAME STAGE1B_BATCH=B STAGE1B_SCREEN=1 PIPELINES=N STAGE1_RUNS=R STAGE1B_RESAMPLE=K STAGE1B_COMMON=run|batch TOP=K STAGE1_ENGINE=E STAGE1_SET="NAME=VALUE ..." STAGE1B_START=all|raced|pool STAGE1B_SET="NAME=VALUE ..." STAGE1B_CELLS="NAME,..." FLAT_BEST=METRES FLAT_FELL=SHARE] robust-walk-search.sh SEED}
 stage1b_budget=${STAGE1B_BUDGET:-600}
 stage1b_optimizer=${STAGE1B_OPTIMIZER:-hs}
 stage1b_batch=${STAGE1B_BATCH:-2}
@@ -184,8 +190,11 @@ stage1_runs=${STAGE1_RUNS:-4}
 stage1_optimizer=${STAGE1_OPTIMIZER:-hs}
 stage1_batch=${STAGE1_BATCH:-2}
 for knob in PIPELINES STAGE1_RUNS DEADLINE LATER_STAGES STAGE1_TIME RACE_SEEDS; do
+    if [ "$knob" = LATER_STAGES ] && [ "${LATER_STAGES:-}" = auto ]; then continue; fi
     if ! [[ ${!knob:-1} =~ ^[1-9][0-9]*$ ]]; then
-        echo "$knob must be a whole number, 1 or more; got '${!knob}'" >&2
+        or_auto=""
+        if [ "$knob" = LATER_STAGES ]; then or_auto=", or auto"; fi
+        echo "$knob must be a whole number, 1 or more$or_auto; got '${!knob}'" >&2
         exit 2
     fi
 done
@@ -239,6 +248,7 @@ if [ -n "${FLAT_FELL:-}" ]; then
     fi
 fi
 later_stages=${LATER_STAGES:-390}  # seconds DEADLINE keeps for the re-check, race and table
+if [ "$later_stages" = auto ]; then later_stages=0; fi  # until the basin race has been timed
 if [ -n "${LATER_STAGES:-}" ] && [ -z "${DEADLINE:-}" ]; then
     echo "LATER_STAGES needs DEADLINE (it is the part of DEADLINE kept for the later stages)," \
         "e.g. DEADLINE=1800 LATER_STAGES=480" >&2
@@ -251,8 +261,10 @@ if [ -n "${DEADLINE:-}" ] && [ "$later_stages" -ge "$DEADLINE" ]; then
 fi
 if [ -n "${STAGE1_TIME:-}" ] && [ -n "${DEADLINE:-}" ] \
     && [ "$STAGE1_TIME" -ge $((DEADLINE - later_stages)) ]; then
-    echo "STAGE1_TIME must leave stage 1b time before DEADLINE less the $later_stages s kept for" \
-        "the later stages: at most $((DEADLINE - later_stages - 1)); got '$STAGE1_TIME'" >&2
+    kept=" less the $later_stages s kept for the later stages"
+    if [ "${LATER_STAGES:-}" = auto ]; then kept=""; fi
+    echo "STAGE1_TIME must leave stage 1b time before DEADLINE$kept:" \
+        "at most $((DEADLINE - later_stages - 1)); got '$STAGE1_TIME'" >&2
     exit 2
 fi
 least_retry=60  # seconds: FLAT_BEST starts a pipeline again only with this much time to give it
@@ -308,6 +320,16 @@ race_basins() {  # $1: the ranking CSV; the rest: the runs whose bests are raced
         --set flight_penalty=50 "${standard_walk[@]}" --workers 2 --db "$db" \
         --ranking "$ranking"
 }
+#: episodes of one candidate over the standard table at one seed per cell (nao-walk-3: 11 cells
+#: on MuJoCo and PyBullet, 9 on ODE, whose two friction cells are left out)
+table_episodes=31
+auto_later_stages() {  # seconds to keep for the later stages, from the basin race's $1 seconds
+    # for $2 basins (8 seeds, nominal, 3 engines: 24 episodes each): the later stages walk the
+    # re-check's TOP per pipeline at one seed per cell, the race's 3 at RACE_SEEDS and the table
+    # at 10 seeds, 15 s episodes as the race's; a fifth more and 20 s for the three commands.
+    local episodes=$((table_episodes * (top * pipelines + 3 * race_seeds + 10)))
+    echo $(($1 * episodes * 6 / (5 * 24 * $2) + 20))
+}
 time_share() {  # pipeline $1's share of the time left to DEADLINE, seconds (a day without one)
     if [ -z "${DEADLINE:-}" ]; then echo 86400; return; fi
     even_share $((DEADLINE - later_stages)) $((pipelines - $1 + 1))
@@ -338,8 +360,14 @@ if [ "$stage1b_start" = pool ]; then
         pool+=("${ids[@]}")
     done
     basins="robust-walk-s$seed-basins.csv"
+    race_started=$SECONDS
     race_basins "$basins" "${pool[@]}"
     pool_size=${#pool[@]}
+    if [ "${LATER_STAGES:-}" = auto ]; then
+        later_stages=$(auto_later_stages $((SECONDS - race_started)) "$pool_size")
+        echo "LATER_STAGES=auto: the basin race took $((SECONDS - race_started)) s for" \
+            "$pool_size basins; $later_stages s kept for the later stages" >&2
+    fi
 fi
 for p in $(seq 1 "$pipelines"); do
     case $stage1b_start in
