@@ -147,3 +147,51 @@ def test_against_gives_the_median_paired_difference_and_the_sign_test(tmp_path: 
     unpaired = metaopt_cli("robustness-summary", *tables, "--against", "b0.csv", cwd=tmp_path)
     assert unpaired.returncode == 2
     assert "3 tables against 1: give one --against table per table" in unpaired.stderr
+
+
+def test_the_figure_draws_each_search_at_its_fall_rate_and_speed_against_the_goals(
+    tmp_path: Path,
+) -> None:
+    """One panel per engine: each search's whole-table fall rate and median speed, the search
+    within every goal filled, the median over the searches as the cross, the goals on speed
+    and falls as the bounds; the command writes it as a PNG beside its table."""
+    from metaopt.assessment import robustness, search_medians
+
+    speeds = {"s1.csv": 0.5, "s2.csv": 0.4, "s3.csv": 0.6}
+    falls = {"s1.csv": 0, "s2.csv": 0, "s3.csv": 2}  # of 4 ode episodes: 0, 0 and 50 %
+    for name, speed in speeds.items():
+        _search(tmp_path / name, name, {"mujoco": [speed] * 4, "ode": [speed] * 4}, falls[name])
+    tables = [search_medians.read_table(tmp_path / name) for name in speeds]
+    goals = [robustness.parse_goal(g, TABLE.metrics, "t-1") for g in GOALS[1::2]]
+    drawn = search_medians.figure(tables, search_medians.medians(tables), goals)
+    panels = drawn.axes
+    assert [ax.get_title() for ax in panels] == ["mujoco", "ode"]
+    for ax, engine in zip(panels, ("mujoco", "ode"), strict=True):
+        hollow, filled, median = (c.get_offsets().tolist() for c in ax.collections)
+        ode_falls = {"s1.csv": 0.0, "s2.csv": 0.0, "s3.csv": 0.5}
+        fell = {name: ode_falls[name] if engine == "ode" else 0.0 for name in speeds}
+        # only s1 meets every goal on every engine: s2 is slow, s3 falls on ode
+        assert filled == [[fell["s1.csv"], 0.5]]
+        assert sorted(hollow) == sorted([[fell["s2.csv"], 0.4], [fell["s3.csv"], 0.6]])
+        assert median == [[statistics.median(fell.values()), 0.5]]
+        assert [line.get_ydata()[0] for line in ax.lines if line.get_ydata()[0] == 0.44]
+        assert [line.get_xdata()[0] for line in ax.lines if line.get_xdata()[0] == 0.05]
+    done = metaopt_cli("robustness-summary", *speeds, *GOALS, "--figure", "searches.png",
+                       cwd=tmp_path)  # fmt: skip
+    assert done.returncode == 0, done.stderr
+    assert (tmp_path / "searches.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+
+
+def test_a_figure_of_a_table_without_a_fall_rate_is_refused_before_any_file(
+    tmp_path: Path,
+) -> None:
+    """Speed is drawn against a fall rate: a table without one is one clear line (exit 2),
+    and neither the CSV nor the figure is written."""
+    table = PerturbationTable("t-1", (), ("speed", "|drift|"))
+    _search(tmp_path / "a.csv", "run 1", {"mujoco": [0.5, 0.5]}, table=table)
+    done = metaopt_cli("robustness-summary", "a.csv", "--csv", "out.csv", "--figure", "f.png",
+                       cwd=tmp_path)  # fmt: skip
+    assert done.returncode == 2, done.stdout
+    assert "Traceback" not in done.stderr and "has no fall rate" in done.stderr
+    assert len(done.stderr.strip().splitlines()) == 1
+    assert not (tmp_path / "out.csv").exists() and not (tmp_path / "f.png").exists()

@@ -11,9 +11,13 @@ import statistics
 from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 from metaopt.assessment.robustness import CSV_COLUMNS, WHOLE_TABLE, Goal, write_rows
 from metaopt.errors import ConfigError
+
+if TYPE_CHECKING:
+    from matplotlib.figure import Figure
 
 #: the suffixes of a metric's columns (a rate, e.g. 'fell', has one column of its own name)
 _SPREAD = ("_q25", "_q75")
@@ -179,6 +183,60 @@ def paired_differences(
 def missed_goals(figures: dict[str, float], failed: int, goals: Sequence[Goal]) -> list[Goal]:
     """The goals one engine's figures miss (every goal, where an evaluation failed)."""
     return [goal for goal in goals if goal.margin_of(figures[goal.metric], failed) < 0]
+
+
+def within_goals(tables: Sequence[SearchTable], goals: Sequence[Goal]) -> list[SearchTable]:
+    """The searches whose candidate meets every goal on every engine."""
+    return [
+        t
+        for t in tables
+        if not any(missed_goals(f, t.failed[e], goals) for e, f in t.figures.items())
+    ]
+
+
+def figure(tables: Sequence[SearchTable], summary: Medians, goals: Sequence[Goal]) -> Figure:
+    """One panel per engine: each search's candidate at its fall rate and median speed (the
+    table's first metric), filled where it meets every goal on every engine, the median over
+    the searches as a cross, and the goals on those two metrics as dashed bounds; so a
+    design's spread is seen against the corner the goal asks for. ConfigError where the
+    table has no fall rate."""
+    from matplotlib.figure import Figure
+
+    first = tables[0]
+    speed = first.metrics[0]
+    fell = next((m for m in first.metrics if m.startswith("fell")), None)
+    if fell is None:
+        raise ConfigError(
+            f"{first.source}: table {first.version} has no fall rate (metrics: "
+            f"{', '.join(first.metrics)}); --figure draws {speed} against a 'fell' rate"
+        )
+    within = {id(t) for t in within_goals(tables, goals)} if goals else set()
+    engines = list(first.figures)
+    fig = Figure(figsize=(3.2 * len(engines), 3.4), layout="constrained")
+    axes = fig.subplots(1, len(engines), sharex=True, sharey=True, squeeze=False)[0]
+    for ax, engine in zip(axes, engines, strict=True):
+        for meets in (False, True):
+            chosen = [t for t in tables if (id(t) in within) == meets]
+            ax.scatter([t.figures[engine][fell] for t in chosen],
+                       [t.figures[engine][speed] for t in chosen],
+                       s=22, facecolors="tab:green" if meets else "none",
+                       edgecolors="tab:green" if meets else "tab:blue",
+                       label="meets every goal" if meets else "a search")  # fmt: skip
+        ax.scatter([summary.figures[engine][fell]], [summary.figures[engine][speed]], marker="x",
+                   s=70, color="black", label=f"median of {summary.count}")  # fmt: skip
+        for goal in goals:
+            if goal.metric == speed:
+                ax.axhline(goal.threshold, color="grey", linestyle="--", linewidth=1)
+            elif goal.metric == fell:
+                ax.axvline(goal.threshold, color="grey", linestyle="--", linewidth=1)
+        ax.set_title(engine, fontsize="medium")
+        ax.set_xlabel(f"{fell} rate")
+        ax.grid(alpha=0.3)
+    axes[0].set_ylabel(f"{speed} (median over the table)")
+    axes[-1].legend(fontsize="x-small", loc="lower right")
+    fig.suptitle(f"{len(tables)} searches over perturbation table {first.version}",
+                 fontsize="medium")  # fmt: skip
+    return fig
 
 
 def write_medians(

@@ -249,11 +249,19 @@ def _checked_goals(
     "median paired differences).",
     suffix=".csv",
 )
+@output_file_option(
+    "--figure",
+    "figure_path",
+    "Draw each search's speed against its fall rate, per engine, with the median and the "
+    "goals' bounds (PNG) here.",
+    suffix=".png",
+)
 def robustness_summary_command(
     csv_paths: tuple[Path, ...],
     goal_texts: tuple[str, ...],
     against_paths: tuple[Path, ...],
     csv_path: Path | None,
+    figure_path: Path | None,
 ) -> None:
     """Summarise several searches of one design: each CSV is one search's chosen candidate
     over the perturbation table (robustness --csv); shows each search's whole-table figures
@@ -267,6 +275,8 @@ def robustness_summary_command(
         baselines = [search_medians.read_table(path) for path in against_paths]
         paired = search_medians.paired_differences(tables, baselines)
     summary = search_medians.medians(tables)
+    # drawn before anything is printed or written: a table it cannot draw is refused first
+    drawn = None if figure_path is None else search_medians.figure(tables, summary, goals)
     console.print(display.search_medians_table(tables, summary))
     if goals:
         console.print(display.search_medians_verdict(tables, summary, goals))
@@ -275,6 +285,11 @@ def robustness_summary_command(
     if csv_path is not None:
         search_medians.write_medians(csv_path, tables, summary, paired)
         console.print(f"wrote {csv_path}")
+    if drawn is not None:
+        from metaopt.reporting.plots import save_figure
+
+        save_figure(drawn, figure_path)
+        console.print(f"wrote {figure_path}")
 
 
 @click.command("robustness-rank")

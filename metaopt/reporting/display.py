@@ -28,6 +28,7 @@ from metaopt.assessment.search_medians import (
     PairedDifferences,
     SearchTable,
     missed_goals,
+    within_goals,
 )
 from metaopt.params import Param
 from metaopt.reporting.history import RunHistory
@@ -604,11 +605,7 @@ def search_medians_verdict(tables: Sequence, summary: Medians, goals: Sequence) 
              f"{', '.join(map(str, goals))}:"]  # fmt: skip
     for engine, figures in summary.figures.items():
         lines.append(_verdict_line(engine, figures, summary.failed[engine], goals))
-    within = [
-        t.source
-        for t in tables
-        if not any(missed_goals(f, t.failed[e], goals) for e, f in t.figures.items())
-    ]
+    within = [t.source for t in within_goals(tables, goals)]
     lines.append(f"searches whose candidate meets every goal on every engine: {len(within)} of "
                  f"{len(tables)}" + (f" ({', '.join(within)})" if within else ""))  # fmt: skip
     return "\n".join(lines)
