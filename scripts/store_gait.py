@@ -27,6 +27,7 @@ import argparse
 import json
 import math
 import sys
+from collections.abc import Sequence
 from pathlib import Path
 
 from metaopt_problems.nao_walk.stored_gaits import (
@@ -71,23 +72,38 @@ def claim(record: dict, engine: str) -> dict:
     }
 
 
-def record(db: Path, target: str, command: str, description: str, claims: list[str]) -> dict:
+def record(
+    db: Path,
+    target: str,
+    command: str,
+    description: str,
+    claims: list[str],
+    changes: Sequence[str] = (),
+) -> dict:
     """The gait record of ``target`` in ``db``: a run's best candidate (by its aggregate over
     its samples when the run resampled, as the optimizer saw it) or RUN:NUMBER, another one
-    (e.g. the one `metaopt robustness RUN --top K` ranked first)."""
+    (e.g. the one `metaopt robustness RUN --top K` ranked first); ``changes`` (NAME=VALUE) are
+    problem parameters it walks with instead of the run's, kept in found_by as walked_with
+    (duration=15: the standard walk, for a run that searched shorter ones)."""
     from metaopt.assessment.replay import stored_candidate
-    from metaopt.errors import StoreError
+    from metaopt.errors import ConfigError, StoreError
     from metaopt.params import resolve
     from metaopt.plugins import registry
+    from metaopt.settings import parse_problem_settings
     from metaopt.storage.run_store import RunStore
+
+    info = registry().problem("nao-walk")
+    try:
+        walked_with = parse_problem_settings(changes, info)
+    except ConfigError as bad:
+        raise SystemExit(str(bad)) from None
 
     with RunStore(db) as store:
         try:
             run, best = stored_candidate(store, target)
         except StoreError as missing:
             raise SystemExit(str(missing)) from None
-    info = registry().problem("nao-walk")
-    problem_params = resolve(info.params, run.problem_params, "nao-walk")
+    problem_params = resolve(info.params, {**run.problem_params, **walked_with}, "nao-walk")
     names = [variable["name"] for variable in run.space]
     metrics = {e: gait_metrics(problem_params, best.x, best.seed, e) for e in ENGINES}
     gait = {
@@ -103,6 +119,7 @@ def record(db: Path, target: str, command: str, description: str, claims: list[s
             "run_candidate": best.number,
             "evaluation_seed": best.seed,
             "metaopt_version": run.versions.get("metaopt"),
+            **({"walked_with": walked_with} if walked_with else {}),
         },
         "problem_params": problem_params,
         "parameters": {name: float(value) for name, value in zip(names, best.x)},
@@ -159,6 +176,10 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument(
         "--claim", action="append", default=[], choices=ENGINES, help="an engine it walks on"
     )
+    parser.add_argument(
+        "--set", action="append", default=[], metavar="NAME=VALUE", dest="changes",
+        help="a problem parameter the record walks with instead of the run's (duration=15)",
+    )  # fmt: skip
     parser.add_argument("--remeasure", metavar="NAME", help="re-record gaits/NAME.json")
     parser.add_argument("--why", help="with --remeasure: what changed in the engines")
     args = parser.parse_args(argv)
@@ -173,7 +194,7 @@ def main(argv: list[str] | None = None) -> int:
         if missing:
             parser.error(f"storing a run's gait needs {', '.join(missing)}")
         name = args.name
-        gait = record(args.db, args.run, args.command, args.description, args.claim)
+        gait = record(args.db, args.run, args.command, args.description, args.claim, args.changes)
     path = GAITS / f"{name}.json"
     path.write_text(json.dumps(gait, indent=2) + "\n")
     for engine, claimed in gait["claims"].items():
