@@ -14,6 +14,10 @@ bound.
         --command "metaopt compare docs/faster-walk/mujoco.toml --workers 2" \\
         --description "..." --claim mujoco
 
+``--set NAME=VALUE`` stores the gait walking with a problem parameter other than the run's
+(kept in found_by as walked_with): ``--set duration=15`` for a gait searched on shorter walks,
+so that its record, claims and replays walk the standard 15 s its robustness table walked.
+
 After a change of an engine (or of the claims' statistics), ``--remeasure NAME --why "..."``
 re-runs a record's episode on every engine and re-records what it does now: its metrics, the
 engines' versions, and its claims on every engine it claimed, measured again (a gait that now

@@ -215,7 +215,7 @@ def figure(tables: Sequence[SearchTable], summary: Medians, goals: Sequence[Goal
     fig = Figure(figsize=(3.2 * len(engines), 3.4), layout="constrained")
     axes = fig.subplots(1, len(engines), sharex=True, sharey=True, squeeze=False)[0]
     for ax, engine in zip(axes, engines, strict=True):
-        for meets in (False, True):
+        for meets in (False, True) if goals else (False,):  # no goals: none to meet
             chosen = [t for t in tables if (id(t) in within) == meets]
             ax.scatter([t.figures[engine][fell] for t in chosen],
                        [t.figures[engine][speed] for t in chosen],
