@@ -366,9 +366,10 @@ if [ "$stage1b_start" = pool ]; then
     race_basins "$basins" "${pool[@]}"
     pool_size=${#pool[@]}
     if [ "${LATER_STAGES:-}" = auto ]; then
-        later_stages=$(auto_later_stages $((SECONDS - race_started)) "$pool_size")
-        echo "LATER_STAGES=auto: the basin race took $((SECONDS - race_started)) s for" \
-            "$pool_size basins; $later_stages s kept for the later stages" >&2
+        race_seconds=$((SECONDS - race_started))  # read once: the estimate and its message agree
+        later_stages=$(auto_later_stages "$race_seconds" "$pool_size")
+        echo "LATER_STAGES=auto: the basin race took $race_seconds s for $pool_size basins;" \
+            "$later_stages s kept for the later stages" >&2
     fi
 fi
 for p in $(seq 1 "$pipelines"); do

@@ -403,6 +403,12 @@ def figure(
     return fig
 
 
+def fall_rate_metric(metrics: Sequence[str]) -> str | None:
+    """The first of a table's metrics that is a fall rate ('fell...'), which the figures draw
+    speed against; None where the table has none."""
+    return next((m for m in metrics if m.startswith("fell")), None)
+
+
 def check_changes(changes: Mapping[str, Any], table: PerturbationTable) -> None:
     """ConfigError where a change to the candidates' parameters names one the table sets in
     every cell: it would change nothing, so asking for it is a mistake."""

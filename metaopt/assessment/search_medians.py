@@ -13,7 +13,13 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING
 
-from metaopt.assessment.robustness import CSV_COLUMNS, WHOLE_TABLE, Goal, write_rows
+from metaopt.assessment.robustness import (
+    CSV_COLUMNS,
+    WHOLE_TABLE,
+    Goal,
+    fall_rate_metric,
+    write_rows,
+)
 from metaopt.errors import ConfigError
 
 if TYPE_CHECKING:
@@ -204,7 +210,7 @@ def figure(tables: Sequence[SearchTable], summary: Medians, goals: Sequence[Goal
 
     first = tables[0]
     speed = first.metrics[0]
-    fell = next((m for m in first.metrics if m.startswith("fell")), None)
+    fell = fall_rate_metric(first.metrics)
     if fell is None:
         raise ConfigError(
             f"{first.source}: table {first.version} has no fall rate (metrics: "

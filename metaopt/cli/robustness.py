@@ -175,7 +175,7 @@ def robustness_command(
     if figure_path is not None:
         from metaopt.reporting.plots import save_figure
 
-        speed, fell = table.metrics[0], next(m for m in table.metrics if m.startswith("fell"))
+        speed, fell = table.metrics[0], robustness.fall_rate_metric(table.metrics)
         save_figure(
             robustness.figure(best.candidate, table, best.results, speed, fell), figure_path
         )
