@@ -23,6 +23,11 @@ re-runs a record's episode on every engine and re-records what it does now: its 
 engines' versions, and its claims on every engine it claimed, measured again (a gait that now
 falls there gets a claim saying how often). Metrics it replaces are kept under
 ``earlier_metrics`` with the reason; how it was found and its parameters stay.
+
+``--gaits DIR`` writes (and re-records) records in another folder than the package's.
+A request that cannot be done (no such store or run, a run of another problem, a bad --set, a
+gait that does not walk where it would claim to) is refused in one line, exit 2, and no record
+is written; a record is written whole or not at all.
 """
 
 from __future__ import annotations
@@ -30,7 +35,9 @@ from __future__ import annotations
 import argparse
 import json
 import math
+import os
 import sys
+import tempfile
 from collections.abc import Sequence
 from pathlib import Path
 
@@ -40,7 +47,6 @@ from metaopt_problems.nao_walk.stored_gaits import (
     ENGINES,
     claim_statistics,
     gait_metrics,
-    load_gait,
     replay_gait,
     replay_over_seeds,
 )
@@ -100,13 +106,16 @@ def record(
     try:
         walked_with = parse_problem_settings(changes, info)
     except ConfigError as bad:
-        raise SystemExit(str(bad)) from None
-
+        raise BadInput(str(bad)) from None
+    if not db.is_file():
+        raise BadInput(f"no store at {db}: give --db an existing metaopt store")
     with RunStore(db) as store:
         try:
             run, best = stored_candidate(store, target)
         except StoreError as missing:
-            raise SystemExit(str(missing)) from None
+            raise BadInput(str(missing)) from None
+    if run.problem != "nao-walk":
+        raise BadInput(f"run {run.id} is a {run.problem!r} run; a gait comes from a nao-walk run")
     problem_params = resolve(info.params, {**run.problem_params, **walked_with}, "nao-walk")
     names = [variable["name"] for variable in run.space]
     metrics = {e: gait_metrics(problem_params, best.x, best.seed, e) for e in ENGINES}
@@ -134,8 +143,22 @@ def record(
     gait["claims"] = {engine: claim(gait, engine) for engine in claims}
     for engine, claimed in gait["claims"].items():
         if not walks(claimed):
-            raise SystemExit(f"the gait does not walk on {engine} ({claimed}): nothing to claim")
+            raise BadInput(f"the gait does not walk on {engine} ({claimed}): nothing to claim")
     return gait
+
+
+class BadInput(Exception):
+    """What the command line asked for cannot be done; the message says why and what is
+    accepted."""
+
+
+def write_record(path: Path, gait: dict) -> None:
+    """Write the record whole or not at all: to a temporary file beside it, then renamed."""
+    with tempfile.NamedTemporaryFile(
+        "w", dir=path.parent, prefix=f".{path.stem}-", suffix=".json", delete=False
+    ) as partial:
+        partial.write(json.dumps(gait, indent=2) + "\n")
+    os.replace(partial.name, path)
 
 
 def remeasured(gait: dict, why: str) -> dict:
@@ -184,13 +207,18 @@ def main(argv: list[str] | None = None) -> int:
         "--set", action="append", default=[], metavar="NAME=VALUE", dest="changes",
         help="a problem parameter the record walks with instead of the run's (duration=15)",
     )  # fmt: skip
+    parser.add_argument(
+        "--gaits", type=Path, default=GAITS, metavar="DIR",
+        help="the folder of records (default: the package's problems/nao_walk/gaits)",
+    )  # fmt: skip
     parser.add_argument("--remeasure", metavar="NAME", help="re-record gaits/NAME.json")
     parser.add_argument("--why", help="with --remeasure: what changed in the engines")
     args = parser.parse_args(argv)
     if args.remeasure:
-        if not args.why or not (GAITS / f"{args.remeasure}.json").is_file():
-            parser.error("--remeasure needs an existing record's name and --why")
-        name, gait = args.remeasure, remeasured(load_gait(args.remeasure), args.why)
+        kept = args.gaits / f"{args.remeasure}.json"
+        if not args.why or not kept.is_file():
+            parser.error(f"--remeasure needs an existing record's name (in {args.gaits}) and --why")
+        name, gait = args.remeasure, remeasured(json.loads(kept.read_text()), args.why)
     else:
         needed = {"run": args.run, "--db": args.db, "--name": args.name,
                   "--command": args.command, "--description": args.description}  # fmt: skip
@@ -198,9 +226,14 @@ def main(argv: list[str] | None = None) -> int:
         if missing:
             parser.error(f"storing a run's gait needs {', '.join(missing)}")
         name = args.name
-        gait = record(args.db, args.run, args.command, args.description, args.claim, args.changes)
-    path = GAITS / f"{name}.json"
-    path.write_text(json.dumps(gait, indent=2) + "\n")
+        try:
+            gait = record(
+                args.db, args.run, args.command, args.description, args.claim, args.changes
+            )
+        except BadInput as bad:
+            parser.error(str(bad))
+    path = args.gaits / f"{name}.json"
+    write_record(path, gait)
     for engine, claimed in gait["claims"].items():
         print(
             f"{engine}: over {claimed['seeds']} seeds at noise {claimed['noise']}: median "
@@ -209,7 +242,7 @@ def main(argv: list[str] | None = None) -> int:
             + (f", median flight <= {claimed['max_median_flight']}"
                if "max_median_flight" in claimed else "")
         )  # fmt: skip
-    print(f"wrote {path.relative_to(ROOT)}")
+    print(f"wrote {path}")
     return 0
 
 

@@ -21,7 +21,8 @@ def store_walk_run(db: Path) -> int:
     with RunStore(db) as store:
         run_id = store.create_run(
             optimizer="hs", optimizer_params={}, problem="nao-walk", problem_params=params,
-            seed=0, budget=3, sense="maximize", space=[], settings={}, versions={},
+            seed=0, budget=3, sense="maximize", space=problem.space.to_json(), settings={},
+            versions={},
         )  # fmt: skip
         for index, x in enumerate((problem.space.lower, gait)):
             evaluation = problem.evaluate(x, seed=index)
