@@ -35,12 +35,11 @@ from __future__ import annotations
 import argparse
 import json
 import math
-import os
 import sys
-import tempfile
 from collections.abc import Sequence
 from pathlib import Path
 
+from metaopt.storage.whole_file import written_whole
 from metaopt_problems.nao_walk.stored_gaits import (
     CLAIM_NOISE,
     CLAIM_SEEDS,
@@ -96,7 +95,8 @@ def record(
     problem parameters it walks with instead of the run's, kept in found_by as walked_with
     (duration=15: the standard walk, for a run that searched shorter ones)."""
     from metaopt.assessment.replay import stored_candidate
-    from metaopt.errors import ConfigError, StoreError
+    from metaopt.cli.common import require_store
+    from metaopt.errors import ConfigError, MetaoptError, StoreError
     from metaopt.params import resolve
     from metaopt.plugins import registry
     from metaopt.settings import parse_problem_settings
@@ -107,8 +107,10 @@ def record(
         walked_with = parse_problem_settings(changes, info)
     except ConfigError as bad:
         raise BadInput(str(bad)) from None
-    if not db.is_file():
-        raise BadInput(f"no store at {db}: give --db an existing metaopt store")
+    try:
+        require_store(str(db))
+    except MetaoptError as missing:
+        raise BadInput(str(missing)) from None
     with RunStore(db) as store:
         try:
             run, best = stored_candidate(store, target)
@@ -150,15 +152,6 @@ def record(
 class BadInput(Exception):
     """What the command line asked for cannot be done; the message says why and what is
     accepted."""
-
-
-def write_record(path: Path, gait: dict) -> None:
-    """Write the record whole or not at all: to a temporary file beside it, then renamed."""
-    with tempfile.NamedTemporaryFile(
-        "w", dir=path.parent, prefix=f".{path.stem}-", suffix=".json", delete=False
-    ) as partial:
-        partial.write(json.dumps(gait, indent=2) + "\n")
-    os.replace(partial.name, path)
 
 
 def remeasured(gait: dict, why: str) -> dict:
@@ -233,7 +226,8 @@ def main(argv: list[str] | None = None) -> int:
         except BadInput as bad:
             parser.error(str(bad))
     path = args.gaits / f"{name}.json"
-    write_record(path, gait)
+    with written_whole(path) as record_file:
+        record_file.write(json.dumps(gait, indent=2) + "\n")
     for engine, claimed in gait["claims"].items():
         print(
             f"{engine}: over {claimed['seeds']} seeds at noise {claimed['noise']}: median "

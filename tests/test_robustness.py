@@ -18,6 +18,7 @@ from metaopt.assessment.robustness import (
     PerturbationTable,
     check_changes,
     differing_params,
+    figure_metrics,
     parse_goal,
     rank,
     select_cells,
@@ -478,3 +479,17 @@ def test_robustness_top_ranks_a_runs_best_candidates_and_each_can_be_named(
     assert mixed.returncode == 0, mixed.stderr
     assert "differ in" in mixed.stderr and "Traceback" not in mixed.stderr
     assert "x 2 candidates" in mixed.stdout and "hs_walk" in mixed.stdout
+
+
+def test_the_figures_draw_speed_against_the_first_fall_rate_or_refuse_a_table_without_one():
+    """Both figures (robustness --figure, robustness-summary --figure) ask this one function,
+    and `metaopt robustness` asks it before any evaluation: a table without a fall rate is one
+    ConfigError naming the table and its metrics."""
+    info = registry().problem("nao-walk")
+    speed, fell = figure_metrics(info.perturbations.metrics, info.perturbations.version)
+    assert speed == info.perturbations.metrics[0] == "speed" and fell.startswith("fell")
+    assert figure_metrics(("pace", "fell_early", "fell"), "t-2") == ("pace", "fell_early")
+    with pytest.raises(
+        ConfigError, match=r"table t-1 has no fall rate \(metrics: speed, \|drift\|\)"
+    ):
+        figure_metrics(("speed", "|drift|"), "t-1")

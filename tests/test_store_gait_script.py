@@ -93,7 +93,7 @@ def test_a_missing_store_run_or_problem_is_refused_in_one_line(walk_store, tmp_p
     gaits = tmp_path / "gaits"
     gaits.mkdir()
     for args, said in [
-        (store_args(tmp_path / "none.db", "1", gaits), "no store at"),
+        (store_args(tmp_path / "none.db", "1", gaits), "no run store at"),
         (store_args(db, str(run_id + 7), gaits), str(run_id + 7)),
         (store_args(other, str(sphere), gaits), "'sphere' run"),
         (["--remeasure", "kept", "--gaits", gaits], "--why"),

@@ -403,10 +403,17 @@ def figure(
     return fig
 
 
-def fall_rate_metric(metrics: Sequence[str]) -> str | None:
-    """The first of a table's metrics that is a fall rate ('fell...'), which the figures draw
-    speed against; None where the table has none."""
-    return next((m for m in metrics if m.startswith("fell")), None)
+def figure_metrics(metrics: Sequence[str], version: str) -> tuple[str, str]:
+    """What the figures draw: a table's first metric (its speed) against its first fall rate
+    ('fell...'); ConfigError where table ``version`` has none, so that a figure that cannot
+    be drawn is refused before any work."""
+    fell = next((m for m in metrics if m.startswith("fell")), None)
+    if fell is None:
+        raise ConfigError(
+            f"table {version} has no fall rate (metrics: {', '.join(metrics)}); --figure draws "
+            f"{metrics[0]} against a 'fell' rate"
+        )
+    return metrics[0], fell
 
 
 def check_changes(changes: Mapping[str, Any], table: PerturbationTable) -> None:

@@ -17,7 +17,7 @@ from metaopt.assessment.robustness import (
     CSV_COLUMNS,
     WHOLE_TABLE,
     Goal,
-    fall_rate_metric,
+    figure_metrics,
     write_rows,
 )
 from metaopt.errors import ConfigError
@@ -209,13 +209,10 @@ def figure(tables: Sequence[SearchTable], summary: Medians, goals: Sequence[Goal
     from matplotlib.figure import Figure
 
     first = tables[0]
-    speed = first.metrics[0]
-    fell = fall_rate_metric(first.metrics)
-    if fell is None:
-        raise ConfigError(
-            f"{first.source}: table {first.version} has no fall rate (metrics: "
-            f"{', '.join(first.metrics)}); --figure draws {speed} against a 'fell' rate"
-        )
+    try:
+        speed, fell = figure_metrics(first.metrics, first.version)
+    except ConfigError as error:
+        raise ConfigError(f"{first.source}: {error}") from None
     within = {id(t) for t in within_goals(tables, goals)} if goals else set()
     engines = list(first.figures)
     fig = Figure(figsize=(3.2 * len(engines), 3.4), layout="constrained")

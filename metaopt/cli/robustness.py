@@ -122,6 +122,10 @@ def robustness_command(
         info.perturbations, [c.strip() for c in cells.split(",")] if cells is not None else None
     )
     goals = [robustness.parse_goal(t, table.metrics, table.version) for t in goal_texts]
+    # a figure it cannot draw: refused before any work
+    drawn_metrics = (
+        None if figure_path is None else robustness.figure_metrics(table.metrics, table.version)
+    )
     plans = [  # bad parameters: before any work
         robustness.tasks(candidate, info, table, names, seeds, seed) for candidate in candidates
     ]
@@ -172,12 +176,11 @@ def robustness_command(
     if ranking_path is not None:
         robustness.write_ranking(ranking_path, ranked)
         console.print(f"wrote {ranking_path}")
-    if figure_path is not None:
+    if drawn_metrics is not None:
         from metaopt.reporting.plots import save_figure
 
-        speed, fell = table.metrics[0], robustness.fall_rate_metric(table.metrics)
         save_figure(
-            robustness.figure(best.candidate, table, best.results, speed, fell), figure_path
+            robustness.figure(best.candidate, table, best.results, *drawn_metrics), figure_path
         )
         console.print(f"wrote {figure_path}")
 
