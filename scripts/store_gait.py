@@ -154,6 +154,12 @@ class BadInput(Exception):
     accepted."""
 
 
+def refused(why: str) -> int:
+    """Say in one line on stderr why a request cannot be done; the exit status for bad input."""
+    print(f"store_gait.py: {why}", file=sys.stderr)
+    return 2
+
+
 def remeasured(gait: dict, why: str) -> dict:
     """The record gait with what it does on every engine now (see the module's docstring)."""
     metrics = {e: replay_gait(gait, e) for e in ENGINES}
@@ -210,7 +216,7 @@ def main(argv: list[str] | None = None) -> int:
     if args.remeasure:
         kept = args.gaits / f"{args.remeasure}.json"
         if not args.why or not kept.is_file():
-            parser.error(f"--remeasure needs an existing record's name (in {args.gaits}) and --why")
+            return refused(f"--remeasure needs a record's name in {args.gaits} and --why")
         name, gait = args.remeasure, remeasured(json.loads(kept.read_text()), args.why)
     else:
         needed = {"run": args.run, "--db": args.db, "--name": args.name,
@@ -224,7 +230,7 @@ def main(argv: list[str] | None = None) -> int:
                 args.db, args.run, args.command, args.description, args.claim, args.changes
             )
         except BadInput as bad:
-            parser.error(str(bad))
+            return refused(str(bad))
     path = args.gaits / f"{name}.json"
     with written_whole(path) as record_file:
         record_file.write(json.dumps(gait, indent=2) + "\n")

@@ -78,6 +78,7 @@ def test_a_request_it_cannot_do_is_refused_in_one_line(walk_store, tmp_path, mor
     assert done.returncode == 2
     assert "Traceback" not in done.stderr
     assert said in done.stderr.strip().splitlines()[-1]
+    assert len(done.stderr.strip().splitlines()) == 1, done.stderr
     assert list(tmp_path.iterdir()) == []
 
 
@@ -102,5 +103,6 @@ def test_a_missing_store_run_or_problem_is_refused_in_one_line(walk_store, tmp_p
         assert done.returncode == 2, args
         assert "Traceback" not in done.stderr
         assert said in done.stderr.strip().splitlines()[-1], (args, done.stderr)
+        assert len(done.stderr.strip().splitlines()) == 1, done.stderr
     assert list(gaits.iterdir()) == []
     assert not (tmp_path / "none.db").exists()
