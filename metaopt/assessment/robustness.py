@@ -85,9 +85,15 @@ class CellResult:
         return summarize(self.samples, metric)
 
 
+def is_rate(metric: str) -> bool:
+    """Whether a metric is a rate (its name starts with 'fell': the share of episodes that
+    fell), summarized by its mean and shown in %, not by a median and quartiles."""
+    return metric.startswith("fell")
+
+
 def summarize(samples: Sequence[Mapping[str, float]], metric: str) -> tuple[float, float, float]:
     """(median, lower quartile, upper quartile) of a metric over the samples that report it
-    (NaN when none do); for a rate (a name starting with 'fell') its mean thrice; '|name|'
+    (NaN when none do); for a rate (is_rate) its mean thrice; '|name|'
     summarizes the absolute values."""
     name = metric.strip("|")
     values = [s[name] for s in samples if name in s]
@@ -95,7 +101,7 @@ def summarize(samples: Sequence[Mapping[str, float]], metric: str) -> tuple[floa
         values = [abs(v) for v in values]
     if not values:
         return (math.nan, math.nan, math.nan)
-    if metric.startswith("fell"):
+    if is_rate(metric):
         rate = statistics.fmean(values)
         return (rate, rate, rate)
     low, median, high = np.percentile(values, [25, 50, 75])
@@ -318,7 +324,7 @@ def write_csv(
     and quartiles (a rate: its value). Written whole or not at all."""
     header = list(CSV_COLUMNS)
     for metric in table.metrics:
-        header += [metric] if metric.startswith("fell") else [
+        header += [metric] if is_rate(metric) else [
             f"{metric}_median", f"{metric}_q25", f"{metric}_q75"]  # fmt: skip
     rows = []
     for candidate, results in tables:
@@ -327,7 +333,7 @@ def write_csv(
                               len(result.samples) + result.failed, result.failed]  # fmt: skip
             for metric in table.metrics:
                 median, low, high = result.summary(metric)
-                row += [median] if metric.startswith("fell") else [median, low, high]
+                row += [median] if is_rate(metric) else [median, low, high]
             rows.append(row)
     write_rows(path, header, rows)
 
@@ -407,7 +413,7 @@ def figure_metrics(metrics: Sequence[str], version: str) -> tuple[str, str]:
     """What the figures draw: a table's first metric (its speed) against its first fall rate
     ('fell...'); ConfigError where table ``version`` has none, so that a figure that cannot
     be drawn is refused before any work."""
-    fell = next((m for m in metrics if m.startswith("fell")), None)
+    fell = next((m for m in metrics if is_rate(m)), None)
     if fell is None:
         raise ConfigError(
             f"table {version} has no fall rate (metrics: {', '.join(metrics)}); --figure draws "

@@ -23,6 +23,7 @@ from rich.progress import (
 from rich.table import Table
 
 from metaopt.assessment.replay import Replay, ReplaySource, SeedReplay
+from metaopt.assessment.robustness import is_rate, summarize
 from metaopt.assessment.search_medians import (
     Medians,
     PairedDifferences,
@@ -495,7 +496,7 @@ def robustness_table(
     table.add_column(f"{metrics[0]} (median)", justify="right")
     table.add_column("IQR", justify="right")
     for metric in metrics[1:]:
-        table.add_column(metric if metric.startswith("fell") else f"{metric} (median)",
+        table.add_column(metric if is_rate(metric) else f"{metric} (median)",
                          justify="right")  # fmt: skip
     for number, result in enumerate([*results, *totals]):
         if number == len(results):
@@ -504,7 +505,7 @@ def robustness_table(
         cells = [f"{median:.3f}", f"{low:.3f} to {high:.3f}"]
         for metric in metrics[1:]:
             value = result.summary(metric)[0]
-            cells.append(f"{value:.0%}" if metric.startswith("fell") else f"{value:.3f}")
+            cells.append(f"{value:.0%}" if is_rate(metric) else f"{value:.3f}")
         seeds = f"{len(result.samples)}" + (f" ({result.failed} failed)" if result.failed else "")
         table.add_row(result.cell, result.engine, seeds, *cells)
     return table
@@ -544,7 +545,7 @@ def paired_differences_table(paired: PairedDifferences, metrics: Sequence[str]) 
         cells = []
         for metric in metrics:
             value = medians[metric]
-            shown = f"{value * 100:+.1f} pp" if metric.startswith("fell") else f"{value:+.3f}"
+            shown = f"{value * 100:+.1f} pp" if is_rate(metric) else f"{value:+.3f}"
             up, down = paired.up[engine][metric], paired.down[engine][metric]
             cells.append(f"{shown} ({up}↑ {down}↓, p {paired.sign_test(engine, metric):.2f})")
         table.add_row(engine, *cells)
@@ -582,13 +583,13 @@ def goal_ranking_table(ranked: Sequence, goals: Sequence) -> Table:
 
 def _add_figure_columns(table: Table, metrics: Sequence[str]) -> None:
     for metric in metrics:
-        table.add_column(metric if metric.startswith("fell") else f"{metric} (median)",
+        table.add_column(metric if is_rate(metric) else f"{metric} (median)",
                          justify="right")  # fmt: skip
 
 
 def _figure_cells(metrics: Sequence[str], figures: dict[str, float]) -> list[str]:
     """A table's whole-table figures as shown: a rate in %, a median to 3 decimals."""
-    return [f"{figures[m]:.1%}" if m.startswith("fell") else f"{figures[m]:.3f}"
+    return [f"{figures[m]:.1%}" if is_rate(m) else f"{figures[m]:.3f}"
             for m in metrics]  # fmt: skip
 
 
@@ -618,7 +619,7 @@ def robustness_ranking(
     worst engine's mean fitness over the table; with goals, first the (goal, engine) pairs it
     misses and its smallest margin to a goal) and, per engine over the whole table, the mean
     fitness, the first metric's median and the rates."""
-    rates = [m for m in metrics if m.startswith("fell")]
+    rates = [m for m in metrics if is_rate(m)]
     by = f" by the goals {', '.join(map(str, goals))}" if goals else ""
     table = Table(title=f"candidates ranked over perturbation table {version}{by}",
                   title_justify="left")  # fmt: skip
@@ -663,8 +664,6 @@ def _verdict_line(engine: str, figures: dict[str, float], failed: int, goals: Se
 def replay_seeds_table(replay: SeedReplay) -> Table:
     """`metaopt replay --seeds N`: the stored candidate beside the median and interquartile
     range (for 'fell': the rate) of its re-evaluations over N seeds."""
-    from metaopt.assessment.robustness import summarize
-
     source = replay.source
     done = [o for o in replay.outcomes if o.fitness is not None]
     failed = len(replay.outcomes) - len(done)
@@ -681,7 +680,7 @@ def replay_seeds_table(replay: SeedReplay) -> Table:
     names = [*(stored or {"fitness": None}), *(k for o in done for k in o.metrics)]
     for name in dict.fromkeys(names):
         median, low, high = summarize(samples, name)
-        if name.startswith("fell"):
+        if is_rate(name):
             row = [f"{median:.0%} fell", ""]
         else:
             row = [format_number(median), f"{format_number(low)} to {format_number(high)}"]
