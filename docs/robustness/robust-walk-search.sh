@@ -60,7 +60,7 @@
 # 1b), on fresh seeds 104-106 (within part 4's goal as their median), 107 and 108-110 (not).
 # Design V is design U with STAGE1B_CELLS="nominal,nominal,nominal,servo gain x1.2,servo gain
 # x1.2,latency 1" (servo gain x1.2 drawn twice as often), on fresh seeds 111-113 (one PyBullet
-# fall in 110 episodes short of the goal as their median).
+# fall in 110 episodes short of the goal as their median) and 114-115 of 114-116 (not).
 # STAGE1B_SCREEN=1 screens stage 1b (metaopt run --screen; with STAGE1B_OPTIMIZER=cmaes and
 # engine_score=worst in STAGE1B_SET): each candidate walks on MuJoCo and ODE first, and on
 # PyBullet only where it can still rank in CMA-ES's better half, which changes no step of
