@@ -46,6 +46,7 @@ from metaopt_problems.nao_walk.stored_gaits import (
     ENGINES,
     claim_statistics,
     gait_metrics,
+    read_gait,
     replay_gait,
     replay_over_seeds,
 )
@@ -217,7 +218,7 @@ def main(argv: list[str] | None = None) -> int:
         kept = args.gaits / f"{args.remeasure}.json"
         if not args.why or not kept.is_file():
             return refused(f"--remeasure needs a record's name in {args.gaits} and --why")
-        name, gait = args.remeasure, remeasured(json.loads(kept.read_text()), args.why)
+        name, gait = args.remeasure, remeasured(read_gait(kept), args.why)
     else:
         needed = {"run": args.run, "--db": args.db, "--name": args.name,
                   "--command": args.command, "--description": args.description}  # fmt: skip

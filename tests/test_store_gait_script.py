@@ -64,6 +64,19 @@ def test_a_stored_record_replays_to_its_metrics_on_every_engine(walk_store, tmp_
     assert [p.name for p in tmp_path.iterdir()] == ["kept.json"]  # no temporary file left
 
 
+@pytest.mark.skipif(bool(ODE_MISSING), reason=ODE_MISSING or "ODE is installed")
+def test_remeasure_re_records_a_record_kept_in_another_folder(walk_store, tmp_path):
+    """--remeasure reads the record from --gaits and, on the engines that made it, measures
+    the same metrics again: nothing is moved to earlier_metrics."""
+    db, run_id = walk_store
+    assert store_gait(*store_args(db, str(run_id), tmp_path)).returncode == 0
+    stored = json.loads((tmp_path / "kept.json").read_text(encoding="utf-8"))
+    done = store_gait("--remeasure", "kept", "--why", "a test", "--gaits", tmp_path)
+    assert done.returncode == 0, done.stderr
+    again = json.loads((tmp_path / "kept.json").read_text(encoding="utf-8"))
+    assert again == stored and "earlier_metrics" not in again
+
+
 @pytest.mark.parametrize(
     ("more", "said"),
     [

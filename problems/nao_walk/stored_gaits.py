@@ -7,6 +7,8 @@ from __future__ import annotations
 
 import json
 from importlib.resources import files
+from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -16,6 +18,9 @@ from metaopt.seeding import EvaluationSeeds
 
 from .plugin import CONTROLLER_KINDS, NaoWalk
 from .robustness import BACKGROUND_NOISE, UNSAMPLED
+
+if TYPE_CHECKING:
+    from importlib.resources.abc import Traversable
 
 #: The engines a record's metrics cover.
 ENGINES = ("mujoco", "pybullet", "ode")
@@ -40,7 +45,11 @@ def stored_gait_names() -> list[str]:
 
 def load_gait(name: str = "hs_walk") -> dict:
     """The stored record gaits/NAME.json (parameters, found_by, problem_params, metrics)."""
-    path = files("metaopt_problems.nao_walk") / "gaits" / f"{name}.json"
+    return read_gait(files("metaopt_problems.nao_walk") / "gaits" / f"{name}.json")
+
+
+def read_gait(path: Path | Traversable) -> dict:
+    """A gait record read from its file (UTF-8 JSON), wherever it is kept."""
     return json.loads(path.read_text(encoding="utf-8"))
 
 
