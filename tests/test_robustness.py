@@ -437,6 +437,13 @@ def test_find_candidates_takes_a_runs_top_or_one_candidate_by_number(short_run: 
     (one,), _ = find_candidates(f"1:{numbers[2]}", registry().problems, db, 1)
     assert one.label == f"run 1 candidate {numbers[2]}" and np.array_equal(one.x, best[2].x)
     assert find_candidate("1", registry().problems, db)[0].label == "run 1"
+    latest, _ = find_candidates("1", registry().problems, db, 2, last=3)  # of candidates 0-7
+    with RunStore(db) as store:
+        expected = store.best_candidates(store.run(1), 2, last=3)
+    assert [c.target for c in latest] == [f"1:{r.number}" for r in expected]
+    assert all(r.number >= 5 for r in expected) and len(expected) == 2
+    (alone,), _ = find_candidates("1", registry().problems, db, 1, last=3)
+    assert alone.label == f"run 1 candidate {expected[0].number}"  # not the run's best
     for bad in ("1:x", "x:1"):
         with pytest.raises(
             ConfigError, match=r"nor a run \(RUN, RUN:CANDIDATE or RUN:recommended\)"
@@ -470,6 +477,15 @@ def test_robustness_top_ranks_a_runs_best_candidates_and_each_can_be_named(
                         cwd=short_run)  # fmt: skip
     assert alone.returncode == 0, alone.stderr
     assert _rows(short_run / "one.csv") == [r for r in rows if r["candidate"] == labels[1]]
+    # --last: the ranking's targets are the run's best among its latest candidates
+    latest = metaopt_cli("robustness", "1", "--top", "2", "--last", "3", *cells, "--seeds", "1",
+                         "--ranking", "latest.csv", cwd=short_run)  # fmt: skip
+    assert latest.returncode == 0, latest.stderr
+    with RunStore(short_run / "runs.db") as store:
+        expected = store.best_candidates(store.run(1), 2, last=3)
+    assert sorted(r["target"] for r in _rows(short_run / "latest.csv")) == sorted(
+        f"1:{r.number}" for r in expected
+    )
     missing = metaopt_cli("robustness", "1:999", *cells, "--seeds", "1", cwd=short_run)
     assert missing.returncode == 2 and "run 1 has no candidate 999" in missing.stderr
     # a stored gait and a run of the same problem rank together, warned that their parameters

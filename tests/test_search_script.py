@@ -51,6 +51,7 @@ def refusal(tmp_path: Path, path: str, knob: str, value: str, **knobs: str) -> s
         ("LATER_STAGES", "automatic", "a whole number, 1 or more, or auto"),
         ("STAGE1_TIME", "0", "a whole number, 1 or more"),
         ("RACE_SEEDS", "ten", "a whole number, 1 or more"),
+        ("RECHECK_LAST", "1k", "a whole number, 1 or more"),
         ("FLAT_BEST", "1m", "a fitness in metres, 0 or more"),
         ("FLAT_BEST", "-1", "a fitness in metres, 0 or more"),
         ("FLAT_FELL", "90%", "a share of candidates from 0 to 1"),

@@ -136,8 +136,8 @@ def test_an_owners_heartbeat_is_renewed_and_a_silent_remote_claim_taken_over(tmp
 
 def test_a_runs_best_candidates_are_distinct_ranked_by_their_aggregate(tmp_path):
     """best_candidates: the K best by the mean of each candidate's samples (a candidate with a
-    failed sample does not count), one per decision vector; candidate(run, N) reads one back;
-    best_candidate is the first of them."""
+    failed sample does not count), one per decision vector, among the run's N latest when
+    asked; candidate(run, N) reads one back; best_candidate is the first of them."""
     a, b, c, d = (np.full(1, v) for v in (0.1, 0.2, 0.3, 0.4))
     with RunStore(tmp_path / "a.db") as store:
         run_id = _new_run(store, {"mode": "sync", "resample": 2, "aggregate": "mean"})
@@ -163,6 +163,10 @@ def test_a_runs_best_candidates_are_distinct_ranked_by_their_aggregate(tmp_path)
         assert [(r.number, r.fitness) for r in best] == [(1, 0.6), (4, 1.5), (2, 2.0)]
         assert [r.number for r in store.best_candidates(run, 10)] == [1, 4, 2]
         assert store.best_candidate(run).number == 1
+        # among the latest: counted back from candidate 4, the failed candidate 3 included
+        assert [r.number for r in store.best_candidates(run, 3, last=3)] == [4, 2]
+        assert [r.number for r in store.best_candidates(run, 3, last=2)] == [4]
+        assert [r.number for r in store.best_candidates(run, 3, last=4)] == [1, 4, 2]
         assert store.candidate(run, 0).fitness == 3.0
         assert store.candidate(run, 0).metrics == {"f": 3.0}
         with pytest.raises(StoreError, match="no candidate 3 with all its samples successful"):

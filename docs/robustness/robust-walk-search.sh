@@ -61,6 +61,9 @@
 # Design V is design U with STAGE1B_CELLS="nominal,nominal,nominal,servo gain x1.2,servo gain
 # x1.2,latency 1" (servo gain x1.2 drawn twice as often), on fresh seeds 111-113 (one PyBullet
 # fall in 110 episodes short of the goal as their median) and 114-115 of 114-116 (not).
+# RECHECK_LAST=N re-checks each final stage 1b's TOP best among its N latest candidates
+# (metaopt robustness --last N) rather than among all: where stage 1b's scores tie at the cap,
+# its TOP best are otherwise the earliest of the tied. Selection W is RECHECK_LAST=1000.
 # STAGE1B_SCREEN=1 screens stage 1b (metaopt run --screen; with STAGE1B_OPTIMIZER=cmaes and
 # engine_score=worst in STAGE1B_SET): each candidate walks on MuJoCo and ODE first, and on
 # PyBullet only where it can still rank in CMA-ES's better half, which changes no step of
@@ -186,7 +189,7 @@
 # script at commit 5ed7043, the seventh at 3c42de4, the sixth at 6e1fe34, the fifth at
 # 3c8db53, the fourth at ff6956d, the third at abce00d, the second at 9d03e62.
 set -euo pipefail
-seed=${1:?usage: [DEADLINE=SECONDS LATER_STAGES=SECONDS|auto STAGE1_TIME=SECONDS STAGE1_OPTIMIZER=NAME STAGE1_BATCH=B BASIN_FELL=RATE RACE_FELL=RATE RACE_SEEDS=N STAGE1B_BUDGET=N STAGE1B_OPTIMIZER=NAME STAGE1B_BATCH=B STAGE1B_SCREEN=1 PIPELINES=N STAGE1_RUNS=R STAGE1B_RESAMPLE=K STAGE1B_COMMON=run|batch TOP=K STAGE1_ENGINE=E STAGE1_SET="NAME=VALUE ..." STAGE1B_START=all|raced|pool STAGE1B_SET="NAME=VALUE ..." STAGE1B_CELLS="NAME,..." FLAT_BEST=METRES FLAT_FELL=SHARE] robust-walk-search.sh SEED}
+seed=${1:?usage: [DEADLINE=SECONDS LATER_STAGES=SECONDS|auto STAGE1_TIME=SECONDS STAGE1_OPTIMIZER=NAME STAGE1_BATCH=B BASIN_FELL=RATE RACE_FELL=RATE RACE_SEEDS=N STAGE1B_BUDGET=N STAGE1B_OPTIMIZER=NAME STAGE1B_BATCH=B STAGE1B_SCREEN=1 PIPELINES=N STAGE1_RUNS=R STAGE1B_RESAMPLE=K STAGE1B_COMMON=run|batch TOP=K RECHECK_LAST=N STAGE1_ENGINE=E STAGE1_SET="NAME=VALUE ..." STAGE1B_START=all|raced|pool STAGE1B_SET="NAME=VALUE ..." STAGE1B_CELLS="NAME,..." FLAT_BEST=METRES FLAT_FELL=SHARE] robust-walk-search.sh SEED}
 stage1b_budget=${STAGE1B_BUDGET:-600}
 stage1b_optimizer=${STAGE1B_OPTIMIZER:-hs}
 stage1b_batch=${STAGE1B_BATCH:-2}
@@ -194,7 +197,7 @@ pipelines=${PIPELINES:-3}
 stage1_runs=${STAGE1_RUNS:-4}
 stage1_optimizer=${STAGE1_OPTIMIZER:-hs}
 stage1_batch=${STAGE1_BATCH:-2}
-for knob in PIPELINES STAGE1_RUNS DEADLINE LATER_STAGES STAGE1_TIME RACE_SEEDS; do
+for knob in PIPELINES STAGE1_RUNS DEADLINE LATER_STAGES STAGE1_TIME RACE_SEEDS RECHECK_LAST; do
     if [ "$knob" = LATER_STAGES ] && [ "${LATER_STAGES:-}" = auto ]; then continue; fi
     if ! [[ ${!knob:-1} =~ ^[1-9][0-9]*$ ]]; then
         or_auto=""
@@ -214,6 +217,8 @@ if [ -n "${BASIN_FELL:-}" ]; then basin_goals+=(--goal "fell<=$BASIN_FELL"); fi
 race_fell=${RACE_FELL:-0.02}
 race_seeds=${RACE_SEEDS:-10}
 top=${TOP:-3}
+recheck_pool=(--top "$top")  # the re-check's candidates: each final stage 1b's TOP best
+if [ -n "${RECHECK_LAST:-}" ]; then recheck_pool+=(--last "$RECHECK_LAST"); fi
 stage1_engine=${STAGE1_ENGINE:-mujoco}
 stage1b_start=${STAGE1B_START:-raced}
 case $stage1b_start in
@@ -407,7 +412,7 @@ for p in $(seq 1 "$pipelines"); do
     done
     finals+=("$run")
 done
-metaopt robustness "${finals[@]}" --top "$top" --seeds 1 --seed 1 --set fitness=robust \
+metaopt robustness "${finals[@]}" "${recheck_pool[@]}" --seeds 1 --seed 1 --set fitness=robust \
     --set flight_penalty=100 "${standard_walk[@]}" --workers 2 --db "$db" \
     --csv "robust-walk-s$seed-top.csv" --ranking "robust-walk-s$seed-top-ranking.csv" \
     | tee "robust-walk-s$seed-top.txt"

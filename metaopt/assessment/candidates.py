@@ -46,12 +46,16 @@ def find_candidate(
 
 
 def find_candidates(
-    target: str, problems: Mapping[str, ProblemInfo], db_path: str, top: int
+    target: str,
+    problems: Mapping[str, ProblemInfo],
+    db_path: str,
+    top: int,
+    last: int | None = None,
 ) -> tuple[list[Candidate], ProblemInfo]:
     """``target``'s candidates: a stored candidate, ``RUN:NUMBER`` or ``RUN:recommended``
     alone; for a run id, its ``top`` best candidates with distinct decision vectors, best
-    first (labelled ``run R`` when top is 1, else ``run R candidate N``, N being what
-    ``RUN:N`` names)."""
+    first, among its ``last`` latest when given (labelled ``run R`` when they are its one
+    best, else ``run R candidate N``, N being what ``RUN:N`` names)."""
     named = stored_candidate_named(target, problems)
     if named is not None:
         candidate, info, _ = named
@@ -64,7 +68,9 @@ def find_candidates(
         run = store.run(run_id)
         if number != RECOMMENDED:
             records = (
-                [store.candidate(run, int(number))] if number else store.best_candidates(run, top)
+                [store.candidate(run, int(number))]
+                if number
+                else store.best_candidates(run, top, last)
             )
             if not records:
                 raise StoreError(f"run {run.id} has no successful evaluation")
@@ -75,7 +81,7 @@ def find_candidates(
     if number == RECOMMENDED:
         point = recommended_point(run)
         return [Candidate(f"run {run.id} recommended", info.name, params, point, target)], info
-    best_alone = top == 1 and not number
+    best_alone = top == 1 and last is None and not number
     return [
         Candidate(
             f"run {run.id}" if best_alone else f"run {run.id} candidate {r.number}",

@@ -40,6 +40,14 @@ from metaopt.settings import parse_problem_settings
     show_default=True,
     help="From each run, its K best candidates with distinct vectors, ranked over the table.",
 )
+@click.option(
+    "--last",
+    type=click.IntRange(min=1),
+    default=None,
+    metavar="N",
+    help="Take a run's best (or --top K best) among its N latest candidates only: a long noisy "
+    "run's latest have been through more of its selection than an early lucky one [all].",
+)
 @click.option("--engines", default=None, help="Engines joined by '+' [every installed one].")
 @click.option(
     "--seeds",
@@ -97,19 +105,19 @@ from metaopt.settings import parse_problem_settings
 @scheduling_options
 @db_option
 def robustness_command(
-    targets: tuple[str, ...], top: int, engines: str | None, seeds: int, seed: int,
-    cells: str | None, settings: tuple[str, ...], csv_path: Path | None,
+    targets: tuple[str, ...], top: int, last: int | None, engines: str | None, seeds: int,
+    seed: int, cells: str | None, settings: tuple[str, ...], csv_path: Path | None,
     ranking_path: Path | None, figure_path: Path | None, goal_texts: tuple[str, ...],
     executor: str | None, workers: int | None, scheduler: str | None, db_path: str,
 ) -> None:  # fmt: skip
     """Evaluate candidates over their problem's standard perturbation table, on every engine,
-    over N seeds per cell: a run's best (or its --top K best), one of its candidates
-    (RUN:CANDIDATE), what its optimizer recommends (RUN:recommended: CMA-ES's mean) or a
-    stored one (e.g. a nao-walk gait). Several are ranked by their worst
+    over N seeds per cell: a run's best (or its --top K best, among its --last N latest),
+    one of its candidates (RUN:CANDIDATE), what its optimizer recommends (RUN:recommended:
+    CMA-ES's mean) or a stored one (e.g. a nao-walk gait). Several are ranked by their worst
     engine's mean fitness over the table (with --goal: by their margin to the goals first);
     the best is shown cell by cell, and with --goal which goals it meets."""
     plugins = registry()
-    candidates, info = _candidates(targets, top, plugins.problems, db_path)
+    candidates, info = _candidates(targets, top, last, plugins.problems, db_path)
     if info.perturbations is None:
         raise ConfigError(f"problem {info.name!r} has no perturbation table")
     changes = parse_problem_settings(settings, info)
@@ -186,10 +194,10 @@ def robustness_command(
 
 
 def _candidates(
-    targets: tuple[str, ...], top: int, problems: dict, db_path: str
+    targets: tuple[str, ...], top: int, last: int | None, problems: dict, db_path: str
 ) -> tuple[list[Candidate], ProblemInfo]:
     """Every target's candidates, all of one problem (a ranking compares like with like)."""
-    found = [find_candidates(target, problems, db_path, top) for target in targets]
+    found = [find_candidates(target, problems, db_path, top, last) for target in targets]
     info = found[0][1]
     for target, (_, other) in zip(targets, found, strict=True):
         if other.name != info.name:

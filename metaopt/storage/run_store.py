@@ -536,13 +536,22 @@ class RunStore:
             return CandidateRecord(best.candidate, best.x, best.fitness, best.metrics, [best])
         return next(iter(self.best_candidates(run, 1)), None)
 
-    def best_candidates(self, run: RunRecord, count: int) -> list[CandidateRecord]:
+    def best_candidates(
+        self, run: RunRecord, count: int, last: int | None = None
+    ) -> list[CandidateRecord]:
         """The run's ``count`` best candidates with distinct decision vectors, best first (by
         the aggregate over their samples, as best_candidate ranks them; ties: the earlier
-        candidate first). For re-checking the top of a run, whose best is the luckiest of many
-        noisy scores."""
+        candidate first), among its ``last`` latest candidates (by number) when given. For
+        re-checking the top of a run, whose best is the luckiest of many noisy scores; its
+        latest have been through more of its selection than an early lucky one."""
         sign = -1.0 if run.sense == "maximize" else 1.0
-        ranked = sorted(self._complete_candidates(run), key=lambda c: (sign * c.fitness, c.number))
+        complete = self._complete_candidates(run)
+        if last is not None:  # counted back from the latest, whether it succeeded or not
+            (latest,) = self._connection.execute(
+                "SELECT MAX(candidate) FROM evaluations WHERE run_id = ?", (run.id,)
+            ).fetchone()
+            complete = (c for c in complete if latest is not None and c.number > latest - last)
+        ranked = sorted(complete, key=lambda c: (sign * c.fitness, c.number))
         chosen: dict[bytes, CandidateRecord] = {}
         for candidate in ranked:
             chosen.setdefault(candidate.x.tobytes(), candidate)
