@@ -60,7 +60,7 @@
 # 1b), on fresh seeds 104-106 (within part 4's goal as their median), 107 and 108-110 (not).
 # Design V is design U with STAGE1B_CELLS="nominal,nominal,nominal,servo gain x1.2,servo gain
 # x1.2,latency 1" (servo gain x1.2 drawn twice as often), on fresh seeds 111-113 (one PyBullet
-# fall in 110 episodes short of the goal as their median) and 114-115 of 114-116 (not).
+# fall in 110 episodes short of the goal as their median) and 114-116 (two falls short).
 # RECHECK_LAST=N re-checks each final stage 1b's TOP best among its N latest candidates
 # (metaopt robustness --last N) rather than among all: where stage 1b's scores tie at the cap,
 # its TOP best are otherwise the earliest of the tied. Selection W is RECHECK_LAST=1000.
