@@ -134,6 +134,24 @@ def test_an_owners_heartbeat_is_renewed_and_a_silent_remote_claim_taken_over(tmp
         assert store.read("SELECT host FROM run_owners") == [(store_module.HOST,)]
 
 
+def test_latest_candidates_none_of_which_succeeded_are_refused_by_name(tmp_path):
+    """--last N over a run whose N latest candidates all failed: nothing to take, and the
+    message names the window rather than saying the run never succeeded."""
+    from metaopt.assessment.candidates import find_candidates
+    from metaopt.plugins import registry
+
+    with RunStore(tmp_path / "a.db") as store:
+        run_id = _new_run(store)
+        store.add_evaluation(run_id, 0, 0, np.zeros(1), 1.0, {}, None, 0, 0.0)
+        store.add_evaluation(run_id, 1, 1, np.ones(1), None, {}, "ValueError: boom", 1, 0.0)
+    with RunStore(tmp_path / "a.db") as store:
+        run = store.run(run_id)
+        assert store.best_candidates(run, 3, last=1) == []
+        assert [r.number for r in store.best_candidates(run, 3, last=2)] == [0]
+    with pytest.raises(StoreError, match=f"run {run_id} has no successful evaluation among its 1"):
+        find_candidates(str(run_id), registry().problems, str(tmp_path / "a.db"), 3, last=1)
+
+
 def test_a_runs_best_candidates_are_distinct_ranked_by_their_aggregate(tmp_path):
     """best_candidates: the K best by the mean of each candidate's samples (a candidate with a
     failed sample does not count), one per decision vector, among the run's N latest when

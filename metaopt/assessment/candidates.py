@@ -73,7 +73,8 @@ def find_candidates(
                 else store.best_candidates(run, top, last)
             )
             if not records:
-                raise StoreError(f"run {run.id} has no successful evaluation")
+                among = f" among its {last} latest candidates" if last is not None else ""
+                raise StoreError(f"run {run.id} has no successful evaluation{among}")
     info = problems.get(run.problem)
     if info is None:
         raise ConfigError(f"run {run.id}'s problem {run.problem!r} is not installed")
