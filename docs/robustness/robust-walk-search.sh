@@ -63,7 +63,8 @@
 # fall in 110 episodes short of the goal as their median) and 114-116 (two falls short).
 # RECHECK_LAST=N re-checks each final stage 1b's TOP best among its N latest candidates
 # (metaopt robustness --last N) rather than among all: where stage 1b's scores tie at the cap,
-# its TOP best are otherwise the earliest of the tied. Selection W is RECHECK_LAST=1000.
+# its TOP best are otherwise the earliest of the tied. Design W is design V with
+# RECHECK_LAST=1000, on fresh seeds 117-119 (not within the goal; no stage 1b reached the cap).
 # STAGE1B_SCREEN=1 screens stage 1b (metaopt run --screen; with STAGE1B_OPTIMIZER=cmaes and
 # engine_score=worst in STAGE1B_SET): each candidate walks on MuJoCo and ODE first, and on
 # PyBullet only where it can still rank in CMA-ES's better half, which changes no step of
