@@ -141,12 +141,14 @@ def test_latest_candidates_none_of_which_succeeded_are_refused_by_name(tmp_path)
     from metaopt.plugins import registry
 
     with RunStore(tmp_path / "a.db") as store:
+        empty = _new_run(store)
         run_id = _new_run(store)
         store.add_evaluation(run_id, 0, 0, np.zeros(1), 1.0, {}, None, 0, 0.0)
         store.add_evaluation(run_id, 1, 1, np.ones(1), None, {}, "ValueError: boom", 1, 0.0)
     with RunStore(tmp_path / "a.db") as store:
         run = store.run(run_id)
         assert store.best_candidates(run, 3, last=1) == []
+        assert store.best_candidates(store.run(empty), 3, last=1) == []  # no latest at all
         assert [r.number for r in store.best_candidates(run, 3, last=2)] == [0]
     with pytest.raises(StoreError, match=f"run {run_id} has no successful evaluation among its 1"):
         find_candidates(str(run_id), registry().problems, str(tmp_path / "a.db"), 3, last=1)

@@ -550,7 +550,7 @@ class RunStore:
             (latest,) = self._connection.execute(
                 "SELECT MAX(candidate) FROM evaluations WHERE run_id = ?", (run.id,)
             ).fetchone()
-            complete = (c for c in complete if latest is not None and c.number > latest - last)
+            complete = (c for c in complete if c.number > latest - last)  # none: no latest
         ranked = sorted(complete, key=lambda c: (sign * c.fitness, c.number))
         chosen: dict[bytes, CandidateRecord] = {}
         for candidate in ranked:
