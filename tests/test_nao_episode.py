@@ -91,6 +91,7 @@ def test_a_fall_is_detected_and_ends_the_episode(backend: str) -> None:
     assert result.fell
     assert 0 < result.time_walked < SHORT.duration - SHORT.lock
     assert result.fall_time == pytest.approx(SHORT.lock + result.time_walked)
+    assert result.metrics()["time_to_fall"] == result.time_walked  # only where it fell
     assert len(result.trajectory["time"]) == round(result.time_walked / 0.02)
     z, tilt = result.trajectory["z"], result.trajectory["tilt"]
     assert z[-1] < SHORT.fall_height or tilt[-1] > SHORT.fall_tilt  # stopped at the fall ...
@@ -103,6 +104,7 @@ def test_metrics_are_consistent(backend: str) -> None:
     assert not result.fell and result.fall_time == SHORT.duration
     assert result.time_walked == pytest.approx(SHORT.duration - SHORT.lock)
     metrics = result.metrics()
+    assert "time_to_fall" not in metrics  # it walked the whole episode
     assert metrics["speed"] == pytest.approx(metrics["distance"] / metrics["time_walked"])
     assert metrics["height_range"] == pytest.approx(metrics["height_max"] - metrics["height_min"])
     z = result.trajectory["z"]

@@ -5,6 +5,7 @@ through the real command, deterministic whatever runs the evaluations."""
 from __future__ import annotations
 
 import csv
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -18,6 +19,7 @@ from metaopt.assessment.robustness import (
     PerturbationTable,
     check_changes,
     differing_params,
+    evaluate,
     figure_metrics,
     parse_goal,
     rank,
@@ -26,6 +28,7 @@ from metaopt.assessment.robustness import (
     whole_table,
     write_ranking,
 )
+from metaopt.executors.base import SerialExecutor
 from metaopt.params import resolve
 from metaopt.plugins import registry
 from metaopt.storage.run_store import RunStore
@@ -50,7 +53,7 @@ def test_the_standard_table_is_versioned_and_names_the_issues_perturbations() ->
     assert STANDARD_TABLE.version == "nao-walk-3"
     names = [cell.name for cell in STANDARD_TABLE.cells]
     assert names[0] == "nominal" and len(set(names)) == len(names) == 11
-    assert STANDARD_TABLE.metrics == ("speed", "|drift|", "fell", "flight")
+    assert STANDARD_TABLE.metrics == ("speed", "|drift|", "fell", "flight", "time_to_fall")
 
 
 def test_every_cell_and_engine_uses_the_same_seeds_and_checked_parameters() -> None:
@@ -215,6 +218,25 @@ def test_robustness_command_end_to_end_and_deterministic(tmp_path: Path) -> None
                          cwd=tmp_path)  # fmt: skip
     assert pooled.returncode == 0, pooled.stderr
     assert _rows(tmp_path / "pooled.csv") == rows
+
+
+def test_time_to_fall_is_the_median_over_the_episodes_that_fell_of_the_time_they_walked() -> None:
+    """The table says when a gait falls: over the episodes that fell alone (a median over
+    every episode would be the walk's full length wherever most of them walked it)."""
+    info = registry().problem("nao-walk")
+    stored, _ = find_candidate("stride_mujoco", registry().problems, "none.db")
+    candidate = replace(stored, params={**stored.params, "duration": 15.0})
+    table = select_cells(STANDARD_TABLE, ["servo gain x1.2"])
+    plan = tasks(candidate, info, table, ("mujoco",), 6, seed=0)
+    with SerialExecutor() as executor:
+        ((result,),) = evaluate([plan], executor)
+    fallen = [s["time_walked"] for s in result.samples if s["fell"]]
+    assert 0 < len(fallen) < len(result.samples)  # some fell, some walked the whole 12 s
+    assert all(("time_to_fall" in s) == bool(s["fell"]) for s in result.samples)
+    median, low, high = result.summary("time_to_fall")
+    assert median == pytest.approx(float(np.median(fallen)))
+    assert (low, high) == pytest.approx(tuple(np.percentile(fallen, [25, 75])))
+    assert median < 15.0 - 3.0  # before the walk's end, which most episodes' time_walked is
 
 
 def test_robustness_command_refuses_bad_input_in_one_line(tmp_path: Path) -> None:

@@ -29,6 +29,9 @@ def _search(path: Path, label: str, speeds: dict[str, list[float]], falls: int =
             {"speed": v, "drift": -v / 10, "fell": float(engine == "ode" and i < falls),
              "flight": 0.01} for i, v in enumerate(values)
         ]  # fmt: skip
+        for i, sample in enumerate(samples):
+            if sample["fell"]:
+                sample["time_to_fall"] = 2.0 + i  # reported by the episodes that fell alone
         half = len(samples) // 2
         results += [CellResult("nominal", engine, samples[:half], 0, [1.0] * half),
                     CellResult("push", engine, samples[half:], failed, [1.0] * half)]  # fmt: skip
@@ -93,6 +96,33 @@ def test_unlike_or_bad_tables_are_one_clear_error(tmp_path: Path, make, message:
     assert done.returncode == 2, done.stdout
     assert "Traceback" not in done.stderr and message in done.stderr
     assert not (tmp_path / "out.csv").exists()
+
+
+def test_tables_from_before_a_metric_joined_their_version_are_compared_on_those_they_share(
+    tmp_path: Path,
+) -> None:
+    """nao-walk-3's time_to_fall came after its first tables: a summary over older and newer
+    tables of one version compares them on the metrics every one has, and a metric no episode
+    of a search measured (no fall: no time_to_fall) is left out of the median over searches."""
+    newer = PerturbationTable("t-1", (), (*TABLE.metrics, "time_to_fall"))
+    speeds = {"mujoco": [0.5, 0.6, 0.5, 0.6], "ode": [0.5, 0.5, 0.6, 0.6]}
+    _search(tmp_path / "new.csv", "run 1", speeds, falls=3, table=newer)  # times 2, 3, 4: 3
+    _search(tmp_path / "steady.csv", "run 2", speeds, falls=0, table=newer)
+    _search(tmp_path / "old.csv", "run 3", speeds, falls=1)
+    both = metaopt_cli("robustness-summary", "new.csv", "steady.csv", "--csv", "n.csv",
+                       cwd=tmp_path)  # fmt: skip
+    assert both.returncode == 0, both.stderr
+    rows = _rows(tmp_path / "n.csv")
+    assert [r["time_to_fall"] for r in rows if r["engine"] == "ode"] == ["3.0", "nan", "3.0"]
+    assert "–" in both.stdout  # the steady search's time_to_fall: none fell
+    mixed = metaopt_cli("robustness-summary", "new.csv", "old.csv", "--against", "old.csv",
+                        "--against", "new.csv", "--csv", "m.csv", cwd=tmp_path)  # fmt: skip
+    assert mixed.returncode == 0, mixed.stderr
+    rows = _rows(tmp_path / "m.csv")
+    assert list(rows[0]) == ["search", "candidate", "engine", "failed", *TABLE.metrics]
+    assert "time_to_fall" not in mixed.stdout
+    paired = {r["engine"]: r for r in rows if r["search"] == "median difference of 2 pairs"}
+    assert float(paired["ode"]["fell"]) == pytest.approx(0.0)  # +0.5 and -0.5 pair off
 
 
 def test_a_table_of_several_candidates_is_refused(tmp_path: Path) -> None:

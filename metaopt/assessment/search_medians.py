@@ -9,7 +9,7 @@ import csv
 import math
 import statistics
 from collections.abc import Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import TYPE_CHECKING
 
@@ -45,6 +45,13 @@ class SearchTable:
     def metrics(self) -> tuple[str, ...]:
         """The table's metrics in its column order ('speed', '|drift|', 'fell', ...)."""
         return tuple(next(iter(self.figures.values())))
+
+    def on_metrics(self, metrics: Sequence[str]) -> SearchTable:
+        """This table with only ``metrics``' figures, in that order."""
+        figures = {
+            engine: {m: values[m] for m in metrics} for engine, values in self.figures.items()
+        }
+        return replace(self, figures=figures)
 
 
 def read_table(path: Path) -> SearchTable:
@@ -98,21 +105,29 @@ def read_tables(path: Path) -> list[SearchTable]:
         raise ConfigError(f"{path}: a whole-table value is not a number: {error}") from None
 
 
-def check_alike(tables: Sequence[SearchTable]) -> None:
-    """ConfigError unless every table has the same version, engines and metrics: medians
-    over searches compare like with like."""
+def alike(tables: Sequence[SearchTable]) -> list[SearchTable]:
+    """The tables on the metrics they all have (in the first's order), once checked to be of
+    one table version on the same engines (ConfigError otherwise): medians over searches
+    compare like with like. A table written before a metric joined its version (nao-walk-3's
+    time_to_fall) is compared with later ones on the metrics it has."""
     first = tables[0]
     for table in tables[1:]:
         for what, mine, theirs in (
             ("table version", first.version, table.version),
             ("engines", sorted(first.figures), sorted(table.figures)),
-            ("metrics", first.metrics, table.metrics),
         ):
             if mine != theirs:
                 raise ConfigError(
                     f"{table.source} has {what} {theirs}, {first.source} {mine}: give tables "
                     "of one perturbation table version, on the same engines"
                 )
+    shared = [m for m in first.metrics if all(m in table.metrics for table in tables)]
+    if not shared:
+        raise ConfigError(
+            f"{', '.join(t.source for t in tables)}: no metric in every table; give tables "
+            "written by `metaopt robustness --csv` over one perturbation table"
+        )
+    return [table.on_metrics(shared) for table in tables]
 
 
 @dataclass(frozen=True)
@@ -168,7 +183,8 @@ def paired_differences(
             f"{len(tables)} tables against {len(baselines)}: give one --against table per "
             "table, in the same order (the i-th of each on the same seed)"
         )
-    check_alike([*tables, *baselines])
+    compared = alike([*tables, *baselines])
+    tables, baselines = compared[: len(tables)], compared[len(tables) :]
     median: dict[str, dict[str, float]] = {}
     up: dict[str, dict[str, int]] = {}
     down: dict[str, dict[str, int]] = {}

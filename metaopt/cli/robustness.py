@@ -225,13 +225,14 @@ _csv_tables = click.argument(
 )  # fmt: skip
 
 
-def _checked_goals(
+def _alike_with_goals(
     tables: list[search_medians.SearchTable], goal_texts: tuple[str, ...]
-) -> list[robustness.Goal]:
-    """The goals, parsed against the tables' metrics, once the tables are checked alike."""
-    search_medians.check_alike(tables)
+) -> tuple[list[search_medians.SearchTable], list[robustness.Goal]]:
+    """The tables on the metrics they share, once checked alike, and the goals parsed
+    against those metrics."""
+    tables = search_medians.alike(tables)
     first = tables[0]
-    return [robustness.parse_goal(t, first.metrics, first.version) for t in goal_texts]
+    return tables, [robustness.parse_goal(t, first.metrics, first.version) for t in goal_texts]
 
 
 @click.command("robustness-summary")
@@ -280,11 +281,10 @@ def robustness_summary_command(
     chaotic trajectory: a design is judged by medians over its seeds, and two designs run on
     the same seeds by their paired differences (--against)."""
     tables = [search_medians.read_table(path) for path in csv_paths]
-    goals = _checked_goals(tables, goal_texts)
-    paired = None
-    if against_paths:
-        baselines = [search_medians.read_table(path) for path in against_paths]
-        paired = search_medians.paired_differences(tables, baselines)
+    baselines = [search_medians.read_table(path) for path in against_paths]
+    compared, goals = _alike_with_goals([*tables, *baselines], goal_texts)
+    tables, baselines = compared[: len(tables)], compared[len(tables) :]
+    paired = search_medians.paired_differences(tables, baselines) if baselines else None
     summary = search_medians.medians(tables)
     # drawn before anything is printed or written: a table it cannot draw is refused first
     drawn = None if figure_path is None else search_medians.figure(tables, summary, goals)
@@ -329,7 +329,7 @@ def robustness_rank_command(
     engine, as robustness --goal ranks, without evaluating anything. Equal margins keep the
     files' order."""
     tables = [table for path in csv_paths for table in search_medians.read_tables(path)]
-    goals = _checked_goals(tables, goal_texts)
+    tables, goals = _alike_with_goals(tables, goal_texts)
     ranked = goal_ranking.rank_by_goals(tables, goals)
     console.print(display.goal_ranking_table(ranked, goals))
     if ranking_path is not None:

@@ -505,7 +505,7 @@ def robustness_table(
         cells = [f"{median:.3f}", f"{low:.3f} to {high:.3f}"]
         for metric in metrics[1:]:
             value = result.summary(metric)[0]
-            cells.append(f"{value:.0%}" if is_rate(metric) else f"{value:.3f}")
+            cells.append(f"{value:.0%}" if is_rate(metric) else _median_cell(value))
         seeds = f"{len(result.samples)}" + (f" ({result.failed} failed)" if result.failed else "")
         table.add_row(result.cell, result.engine, seeds, *cells)
     return table
@@ -589,8 +589,14 @@ def _add_figure_columns(table: Table, metrics: Sequence[str]) -> None:
 
 def _figure_cells(metrics: Sequence[str], figures: dict[str, float]) -> list[str]:
     """A table's whole-table figures as shown: a rate in %, a median to 3 decimals."""
-    return [f"{figures[m]:.1%}" if is_rate(m) else f"{figures[m]:.3f}"
+    return [f"{figures[m]:.1%}" if is_rate(m) else _median_cell(figures[m])
             for m in metrics]  # fmt: skip
+
+
+def _median_cell(value: float) -> str:
+    """A median to 3 decimals; a dash where no episode measured it (time_to_fall where none
+    fell)."""
+    return "–" if math.isnan(value) else f"{value:.3f}"
 
 
 def _engine_cell(table: SearchTable, engine: str) -> str:

@@ -188,12 +188,16 @@ class EpisodeResult:
         return self.distance / self.time_walked if self.time_walked > 0 else 0.0
 
     def metrics(self) -> dict[str, float]:
-        """The scalar metrics stored with every evaluation."""
+        """The scalar metrics stored with every evaluation; ``time_to_fall`` (seconds walked
+        before the fall) only in an episode that fell, so that its median over a table's
+        episodes says when a gait falls, not how long most of them walked."""
         values = {k: float(v) for k, v in asdict(self).items() if k != "trajectory"}
         if math.isnan(self.flight):
             del values["flight"]
         values["speed"] = self.speed
         values["height_range"] = self.height_max - self.height_min
+        if self.fell:
+            values["time_to_fall"] = self.time_walked
         return values
 
 
