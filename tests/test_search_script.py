@@ -56,12 +56,22 @@ def refusal(tmp_path: Path, path: str, knob: str, value: str, **knobs: str) -> s
         ("FLAT_BEST", "-1", "a fitness in metres, 0 or more"),
         ("FLAT_FELL", "90%", "a share of candidates from 0 to 1"),
         ("FLAT_FELL", "1.5", "a share of candidates from 0 to 1"),
+        ("FINALS", "8,9", "whole numbers 1 or more separated by spaces"),
+        ("FINALS", "", "whole numbers 1 or more separated by spaces"),
+        ("FINALS", "0", "whole numbers 1 or more separated by spaces"),
     ],
 )
 def test_a_bad_knob_stops_the_search_with_one_line(tmp_path, knob, value, accepted):
     """PATH holds no metaopt: a check that let the value through would end in exit 127."""
     line = refusal(tmp_path, "/usr/bin:/bin", knob, value)
     assert knob in line and accepted in line and repr(value) in line
+
+
+def test_finals_run_the_later_stages_on_a_searchs_store_and_say_where_it_is_missing(tmp_path):
+    """FINALS skips stages 1 and 1b: without the search's store there is nothing to choose
+    from, and PATH holds no metaopt, so no stage was started before the refusal."""
+    line = refusal(tmp_path, "/usr/bin:/bin", "FINALS", "8")
+    assert "FINALS runs the later stages on a search's store: no robust-walk-s7.db here" in line
 
 
 def test_a_deadline_needs_every_stage_1_first(tmp_path):

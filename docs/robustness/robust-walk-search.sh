@@ -65,6 +65,13 @@
 # (metaopt robustness --last N) rather than among all: where stage 1b's scores tie at the cap,
 # its TOP best are otherwise the earliest of the tied. Design W is design V with
 # RECHECK_LAST=1000, on fresh seeds 117-119 (not within the goal; no stage 1b reached the cap).
+# FINALS="RUN ..." runs the later stages alone (re-check, race, table) on the store
+# robust-walk-sSEED.db already in the working folder, from these final stage-1b runs (FINALS=8
+# for a search with one pipeline and seven stage-1 runs): another choice among what a search
+# made (TOP, RECHECK_LAST, RACE_SEEDS, RACE_FELL), paired with its own, since the later stages
+# never feed back into stage 1 or 1b. It writes the later stages' files again: run it in a copy
+# of the search's folder. Selection W on designs V's and U's stores is FINALS=8 TOP=6
+# RACE_FELL=0.05 RECHECK_LAST=1000 (docs/robustness/searches.md).
 # STAGE1B_SCREEN=1 screens stage 1b (metaopt run --screen; with STAGE1B_OPTIMIZER=cmaes and
 # engine_score=worst in STAGE1B_SET): each candidate walks on MuJoCo and ODE first, and on
 # PyBullet only where it can still rank in CMA-ES's better half, which changes no step of
@@ -190,7 +197,7 @@
 # script at commit 5ed7043, the seventh at 3c42de4, the sixth at 6e1fe34, the fifth at
 # 3c8db53, the fourth at ff6956d, the third at abce00d, the second at 9d03e62.
 set -euo pipefail
-seed=${1:?usage: [DEADLINE=SECONDS LATER_STAGES=SECONDS|auto STAGE1_TIME=SECONDS STAGE1_OPTIMIZER=NAME STAGE1_BATCH=B BASIN_FELL=RATE RACE_FELL=RATE RACE_SEEDS=N STAGE1B_BUDGET=N STAGE1B_OPTIMIZER=NAME STAGE1B_BATCH=B STAGE1B_SCREEN=1 PIPELINES=N STAGE1_RUNS=R STAGE1B_RESAMPLE=K STAGE1B_COMMON=run|batch TOP=K RECHECK_LAST=N STAGE1_ENGINE=E STAGE1_SET="NAME=VALUE ..." STAGE1B_START=all|raced|pool STAGE1B_SET="NAME=VALUE ..." STAGE1B_CELLS="NAME,..." FLAT_BEST=METRES FLAT_FELL=SHARE] robust-walk-search.sh SEED}
+seed=${1:?usage: [DEADLINE=SECONDS LATER_STAGES=SECONDS|auto STAGE1_TIME=SECONDS STAGE1_OPTIMIZER=NAME STAGE1_BATCH=B BASIN_FELL=RATE RACE_FELL=RATE RACE_SEEDS=N STAGE1B_BUDGET=N STAGE1B_OPTIMIZER=NAME STAGE1B_BATCH=B STAGE1B_SCREEN=1 PIPELINES=N STAGE1_RUNS=R STAGE1B_RESAMPLE=K STAGE1B_COMMON=run|batch TOP=K RECHECK_LAST=N STAGE1_ENGINE=E STAGE1_SET="NAME=VALUE ..." STAGE1B_START=all|raced|pool STAGE1B_SET="NAME=VALUE ..." STAGE1B_CELLS="NAME,..." FLAT_BEST=METRES FLAT_FELL=SHARE FINALS="RUN ..."] robust-walk-search.sh SEED}
 stage1b_budget=${STAGE1B_BUDGET:-600}
 stage1b_optimizer=${STAGE1B_OPTIMIZER:-hs}
 stage1b_batch=${STAGE1B_BATCH:-2}
@@ -213,6 +220,11 @@ for knob in BASIN_FELL RACE_FELL; do
         exit 2
     fi
 done
+if [ -n "${FINALS+set}" ] && ! [[ $FINALS =~ ^\ *[1-9][0-9]*(\ +[1-9][0-9]*)*\ *$ ]]; then
+    echo "FINALS must be the final stage-1b runs' ids, whole numbers 1 or more separated by" \
+        "spaces, e.g. FINALS=8; got '$FINALS'" >&2
+    exit 2
+fi
 basin_goals=(--goal "speed>=0.44")
 if [ -n "${BASIN_FELL:-}" ]; then basin_goals+=(--goal "fell<=$BASIN_FELL"); fi
 race_fell=${RACE_FELL:-0.02}
@@ -300,9 +312,17 @@ fi
 for pair in ${STAGE1B_SET:-}; do stage1b_run+=(--set "$pair"); done
 if [ -n "${STAGE1B_CELLS:-}" ]; then stage1b_run+=(--set "world_cells=$STAGE1B_CELLS"); fi
 db=robust-walk-s$seed.db
-if [ -e "$db" ]; then echo "$db exists: the stages number their runs from 1" >&2; exit 2; fi
-metaopt run "${stage1_run[@]}" --check
-metaopt run "${stage1b_run[@]}" --check
+if [ -n "${FINALS:-}" ]; then
+    if ! [ -e "$db" ]; then
+        echo "FINALS runs the later stages on a search's store: no $db here (run it in a copy" \
+            "of the search's folder)" >&2
+        exit 2
+    fi
+else
+    if [ -e "$db" ]; then echo "$db exists: the stages number their runs from 1" >&2; exit 2; fi
+    metaopt run "${stage1_run[@]}" --check
+    metaopt run "${stage1b_run[@]}" --check
+fi
 first() { awk -F, -v n="$2" 'NR > 1 && NR <= n + 1 {print $2}' "$1"; }  # a ranking's N best
 run=0
 finals=()
@@ -362,57 +382,61 @@ flat = best is None or best["fitness"] < float(sys.argv[1])
 flat = flat or (sys.argv[2] != "" and fell is not None and fell >= float(sys.argv[2]))
 print("yes" if flat else "no")' "$FLAT_BEST" "${FLAT_FELL:-}"
 }
-spare=$pipelines  # the pool's basins handed out so far
-pool_size=0
-if [ "$stage1b_start" = pool ]; then
-    pool=()
-    for p in $(seq 1 "$pipelines"); do
-        stage1 "$p"
-        pool+=("${ids[@]}")
-    done
-    basins="robust-walk-s$seed-basins.csv"
-    race_started=$SECONDS
-    race_basins "$basins" "${pool[@]}"
-    pool_size=${#pool[@]}
-    if [ "${LATER_STAGES:-}" = auto ]; then
-        race_seconds=$((SECONDS - race_started))  # read once: the estimate and its message agree
-        later_stages=$(auto_later_stages "$race_seconds" "$pool_size")
-        echo "LATER_STAGES=auto: the basin race took $race_seconds s for $pool_size basins;" \
-            "$later_stages s kept for the later stages" >&2
-    fi
-fi
-for p in $(seq 1 "$pipelines"); do
-    case $stage1b_start in
-        pool) starts=(--start-from "$(first "$basins" "$p" | tail -n 1)") ;;
-        raced)
+if [ -n "${FINALS:-}" ]; then
+    read -r -a finals <<< "$FINALS"
+else
+    spare=$pipelines  # the pool's basins handed out so far
+    pool_size=0
+    if [ "$stage1b_start" = pool ]; then
+        pool=()
+        for p in $(seq 1 "$pipelines"); do
             stage1 "$p"
-            basins="robust-walk-s$seed-p$p-basins.csv"
-            race_basins "$basins" "${ids[@]}"
-            starts=(--start-from "$(first "$basins" 1)")
-            ;;
-        all)
-            stage1 "$p"
-            starts=()
-            for id in "${ids[@]}"; do starts+=(--start-from "$id"); done
-            ;;
-    esac
-    run_seed=$((10 * seed + p))
-    while :; do
-        stage1b "$p" "$run_seed"
-        [ -n "${FLAT_BEST:-}" ] || break
-        verdict=$(flat "$run")  # on its own line: a store that cannot be read stops the search
-        [ "$verdict" = yes ] || break
-        spare=$((spare + 1))
-        if [ "$spare" -gt "$pool_size" ] || [ "$(time_share "$p")" -lt "$least_retry" ]; then
-            break
+            pool+=("${ids[@]}")
+        done
+        basins="robust-walk-s$seed-basins.csv"
+        race_started=$SECONDS
+        race_basins "$basins" "${pool[@]}"
+        pool_size=${#pool[@]}
+        if [ "${LATER_STAGES:-}" = auto ]; then
+            race_seconds=$((SECONDS - race_started))  # read once: the estimate and its message agree
+            later_stages=$(auto_later_stages "$race_seconds" "$pool_size")
+            echo "LATER_STAGES=auto: the basin race took $race_seconds s for $pool_size basins;" \
+                "$later_stages s kept for the later stages" >&2
         fi
-        echo "stage 1b (run $run) found no candidate scoring $FLAT_BEST: pipeline $p starts" \
-            "again from the pool's basin $spare" >&2
-        starts=(--start-from "$(first "$basins" "$spare" | tail -n 1)")
-        run_seed=$((10 * seed + spare))
+    fi
+    for p in $(seq 1 "$pipelines"); do
+        case $stage1b_start in
+            pool) starts=(--start-from "$(first "$basins" "$p" | tail -n 1)") ;;
+            raced)
+                stage1 "$p"
+                basins="robust-walk-s$seed-p$p-basins.csv"
+                race_basins "$basins" "${ids[@]}"
+                starts=(--start-from "$(first "$basins" 1)")
+                ;;
+            all)
+                stage1 "$p"
+                starts=()
+                for id in "${ids[@]}"; do starts+=(--start-from "$id"); done
+                ;;
+        esac
+        run_seed=$((10 * seed + p))
+        while :; do
+            stage1b "$p" "$run_seed"
+            [ -n "${FLAT_BEST:-}" ] || break
+            verdict=$(flat "$run")  # on its own line: a store that cannot be read stops the search
+            [ "$verdict" = yes ] || break
+            spare=$((spare + 1))
+            if [ "$spare" -gt "$pool_size" ] || [ "$(time_share "$p")" -lt "$least_retry" ]; then
+                break
+            fi
+            echo "stage 1b (run $run) found no candidate scoring $FLAT_BEST: pipeline $p starts" \
+                "again from the pool's basin $spare" >&2
+            starts=(--start-from "$(first "$basins" "$spare" | tail -n 1)")
+            run_seed=$((10 * seed + spare))
+        done
+        finals+=("$run")
     done
-    finals+=("$run")
-done
+fi
 metaopt robustness "${finals[@]}" "${recheck_pool[@]}" --seeds 1 --seed 1 --set fitness=robust \
     --set flight_penalty=100 "${standard_walk[@]}" --workers 2 --db "$db" \
     --csv "robust-walk-s$seed-top.csv" --ranking "robust-walk-s$seed-top-ranking.csv" \
