@@ -20,6 +20,7 @@ from collections.abc import Iterator
 from concurrent.futures import FIRST_COMPLETED, Future, as_completed, wait
 from contextlib import contextmanager
 from dataclasses import asdict, dataclass, field, replace
+from pathlib import Path
 from typing import Any, Protocol
 
 import numpy as np
@@ -216,11 +217,13 @@ def run(
     spec: RunSpec,
     optimizer_info: OptimizerInfo,
     problem_info: ProblemInfo,
-    store: RunStore,
+    store: RunStore | str | Path,
     progress: Progress | None = None,
     executor: Executor | None = None,
 ) -> RunResult:
-    """Run spec.optimizer on spec.problem for spec.budget evaluations, storing each one.
+    """Run spec.optimizer on spec.problem for spec.budget evaluations, storing each one in
+    ``store`` (a RunStore, or the path of one, opened only once every check has passed, so
+    that refused settings leave no new file behind).
 
     Parameters are validated against the plugins' declarations first (ConfigError on bad input).
     Ctrl-C or SIGTERM marks the run 'interrupted' and raises RunInterrupted.
@@ -228,27 +231,51 @@ def run(
     prepared = _prepared(spec, optimizer_info, problem_info)
     spec, problem = prepared.spec, prepared.problem
     try:
-        run_id = store.create_run(
-            optimizer=optimizer_info.name,
-            optimizer_params=prepared.optimizer_params,
-            problem=problem_info.name,
-            problem_params=prepared.problem_params,
-            seed=spec.seed,
-            budget=spec.budget,
-            sense=Sense(problem.sense).value,
-            space=problem.space.to_json(),
-            settings=asdict(spec.settings),
-            versions=environment_versions(),
-        )
-        store.claim(run_id)
-        session = _Session(
-            run_id, spec, prepared.optimizer, problem, problem_info, store,
-            prepared.problem_params,
-        )  # fmt: skip
-        with adopt_problem(problem_info.factory, prepared.problem_params, problem):
-            return session.execute(executor or SerialExecutor(), progress)
+        with _opened(store) as opened:
+            return _stored_run(prepared, optimizer_info, problem_info, opened, progress, executor)
     finally:
         problem.close()
+
+
+@contextmanager
+def _opened(store: RunStore | str | Path) -> Iterator[RunStore]:
+    """``store`` itself (its owner closes it), or the store at that path, closed after."""
+    if isinstance(store, RunStore):
+        yield store
+        return
+    with RunStore(store) as opened:
+        yield opened
+
+
+def _stored_run(
+    prepared: _Prepared,
+    optimizer_info: OptimizerInfo,
+    problem_info: ProblemInfo,
+    store: RunStore,
+    progress: Progress | None,
+    executor: Executor | None,
+) -> RunResult:
+    """The prepared run, created in the store and executed."""
+    spec, problem = prepared.spec, prepared.problem
+    run_id = store.create_run(
+        optimizer=optimizer_info.name,
+        optimizer_params=prepared.optimizer_params,
+        problem=problem_info.name,
+        problem_params=prepared.problem_params,
+        seed=spec.seed,
+        budget=spec.budget,
+        sense=Sense(problem.sense).value,
+        space=problem.space.to_json(),
+        settings=asdict(spec.settings),
+        versions=environment_versions(),
+    )
+    store.claim(run_id)
+    session = _Session(
+        run_id, spec, prepared.optimizer, problem, problem_info, store,
+        prepared.problem_params,
+    )  # fmt: skip
+    with adopt_problem(problem_info.factory, prepared.problem_params, problem):
+        return session.execute(executor or SerialExecutor(), progress)
 
 
 def check_run(spec: RunSpec, optimizer_info: OptimizerInfo, problem_info: ProblemInfo) -> None:

@@ -56,6 +56,12 @@ def test_list_shows_every_plugin_and_one_in_full(tmp_path):
         (["run", "-o", "hs", "-p", "sphere", "--set", "dim=ten"], "cannot read 'ten'"),
         (["run", "-o", "hs", "-p", "sphere", "--set", "dim"], "--set expects NAME=VALUE"),
         (["run", "-o", "hs", "-p", "sphere", "--budget", "0"], "0 is not in the range 1<=x"),
+        # refused by the optimizer as it is built: after the settings' checks, before a store
+        (
+            ["run", "-o", "hs", "-p", "sphere", "--set", "par_min=0.9", "--set", "par_max=0.1"],
+            "par_min (0.9) must not exceed par_max (0.1)",
+        ),
+        (["run", "-o", "ga", "-p", "sphere", "--mode", "async"], "cannot run in async mode"),
         (["list", "nonesuch"], "unknown plugin 'nonesuch'"),
         (["show", "3"], "no run store at metaopt.db"),
     ],

@@ -326,15 +326,15 @@ def run_command(
         check_run(spec, optimizer_info, problem_info)
         click.echo(f"{optimizer_name} on {problem_name}: every setting accepted; nothing run")
         return
-    problem_info.checked_params(problem_params)  # refused before a store exists
-    with RunStore(db_path) as store:
-        label = f"{optimizer_name} on {problem_name}"
-        pool = build_executor(executor, workers, scheduler)
-        result = _with_progress(
-            label, db_path,
-            lambda progress: run(spec, optimizer_info, problem_info, store, progress, pool),
-        )  # fmt: skip
-        _print_result(result, db_path, spec.seed, pool.startup_time)
+    problem_info.checked_params(problem_params)  # refused before a worker starts
+    label = f"{optimizer_name} on {problem_name}"
+    pool = build_executor(executor, workers, scheduler)
+    # the store is opened (and created) once run() has checked every setting
+    result = _with_progress(
+        label, db_path,
+        lambda progress: run(spec, optimizer_info, problem_info, db_path, progress, pool),
+    )  # fmt: skip
+    _print_result(result, db_path, spec.seed, pool.startup_time)
 
 
 @main.command("resume")
