@@ -231,9 +231,15 @@ def _optimize(
         optimizer_params=params,
         settings=settings,
     )
-    with RunStore(IN_MEMORY if store is None else store) as run_store:
-        result = run(spec, registry().optimizer(optimizer), problem_info, run_store)
-        records = list(run_store.evaluations(result.run_id))
+    optimizer_info = registry().optimizer(optimizer)
+    if store is None:  # kept while its evaluations are read: it lives in this connection
+        with RunStore(IN_MEMORY) as run_store:
+            result = run(spec, optimizer_info, problem_info, run_store)
+            records = list(run_store.evaluations(result.run_id))
+    else:  # run() opens it once every setting has passed: a refused run leaves no file
+        result = run(spec, optimizer_info, problem_info, store)
+        with RunStore(store) as run_store:
+            records = list(run_store.evaluations(result.run_id))
     fitness = np.array([np.nan if r.fitness is None else r.fitness for r in records])
     history = History(
         x=np.array([r.x for r in records]),

@@ -69,6 +69,20 @@ def test_a_stored_run_is_in_the_store_for_runs_show_and_report(tmp_path):
     np.testing.assert_array_equal(stored, result.history.fitness)
 
 
+@pytest.mark.parametrize(
+    ("optimizer", "params", "message"),
+    [
+        ("nosuch", {}, "unknown optimizer 'nosuch'"),
+        ("hs", {"par_min": 0.9, "par_max": 0.1}, "par_min"),  # refused as the optimizer is built
+    ],
+)
+def test_a_refused_run_leaves_no_store_behind(tmp_path, optimizer, params, message):
+    db = tmp_path / "api.db"
+    with pytest.raises(metaopt.ConfigError, match=message):
+        metaopt.minimize(sphere, [(-1.0, 1.0)], optimizer, budget=50, store=db, **params)
+    assert list(tmp_path.iterdir()) == []
+
+
 def test_failed_evaluations_count_and_a_function_that_always_fails_is_reported():
     def half_broken(x: np.ndarray) -> float:
         if x[0] < 0:
