@@ -191,3 +191,22 @@ def test_a_runs_best_candidates_are_distinct_ranked_by_their_aggregate(tmp_path)
         assert store.candidate(run, 0).metrics == {"f": 3.0}
         with pytest.raises(StoreError, match="no candidate 3 with all its samples successful"):
             store.candidate(run, 3)
+
+
+def test_check_path_refuses_where_no_store_can_be_and_leaves_nothing_behind(tmp_path):
+    """A run checks where its store goes before anything else and creates it only once every
+    setting has passed: the check itself creates nothing."""
+    RunStore.check_path(tmp_path / "new.db")
+    assert list(tmp_path.iterdir()) == []
+    (tmp_path / "notes.txt").write_text("not a store")
+    with pytest.raises(StoreError, match=r"notes\.txt is not a SQLite database"):
+        RunStore.check_path(tmp_path / "notes.txt")
+    with pytest.raises(StoreError, match="is a directory"):
+        RunStore.check_path(tmp_path)
+    with pytest.raises(StoreError, match=r"folder .*missing does not exist"):
+        RunStore.check_path(tmp_path / "missing" / "x.db")
+    with RunStore(tmp_path / "kept.db") as store:
+        _new_run(store)
+    RunStore.check_path(tmp_path / "kept.db")  # an existing store passes, as it was
+    with RunStore(tmp_path / "kept.db") as store:
+        assert len(store.runs()) == 1

@@ -326,10 +326,10 @@ def run_command(
         check_run(spec, optimizer_info, problem_info)
         click.echo(f"{optimizer_name} on {problem_name}: every setting accepted; nothing run")
         return
+    RunStore.check_path(db_path)  # refused first; created once run() has checked the rest
     problem_info.checked_params(problem_params)  # refused before a worker starts
     label = f"{optimizer_name} on {problem_name}"
     pool = build_executor(executor, workers, scheduler)
-    # the store is opened (and created) once run() has checked every setting
     result = _with_progress(
         label, db_path,
         lambda progress: run(spec, optimizer_info, problem_info, db_path, progress, pool),
