@@ -4,7 +4,8 @@ import time
 import numpy as np
 import pytest
 
-from metaopt import StoreError
+from metaopt import ConfigError, StoreError
+from metaopt.cli.common import check_store_path
 from metaopt.storage import run_store as store_module
 from metaopt.storage.run_store import FLUSH_INTERVAL, EvaluationCounts, RunStore
 
@@ -193,20 +194,20 @@ def test_a_runs_best_candidates_are_distinct_ranked_by_their_aggregate(tmp_path)
             store.candidate(run, 3)
 
 
-def test_check_path_refuses_where_no_store_can_be_and_leaves_nothing_behind(tmp_path):
-    """A run checks where its store goes before anything else and creates it only once every
-    setting has passed: the check itself creates nothing."""
-    RunStore.check_path(tmp_path / "new.db")
+def test_the_store_path_is_refused_where_no_store_can_be_and_nothing_is_left_behind(tmp_path):
+    """`metaopt run` checks where its store goes before anything else and creates it only once
+    every setting has passed: the check itself creates nothing."""
+    check_store_path(str(tmp_path / "new.db"))
     assert list(tmp_path.iterdir()) == []
     (tmp_path / "notes.txt").write_text("not a store")
     with pytest.raises(StoreError, match=r"notes\.txt is not a SQLite database"):
-        RunStore.check_path(tmp_path / "notes.txt")
+        check_store_path(str(tmp_path / "notes.txt"))
     with pytest.raises(StoreError, match="is a directory"):
-        RunStore.check_path(tmp_path)
-    with pytest.raises(StoreError, match=r"folder .*missing does not exist"):
-        RunStore.check_path(tmp_path / "missing" / "x.db")
+        check_store_path(str(tmp_path))
+    with pytest.raises(ConfigError, match=r"folder .*missing does not exist"):
+        check_store_path(str(tmp_path / "missing" / "x.db"))
     with RunStore(tmp_path / "kept.db") as store:
         _new_run(store)
-    RunStore.check_path(tmp_path / "kept.db")  # an existing store passes, as it was
+    check_store_path(str(tmp_path / "kept.db"))  # an existing store passes, as it was
     with RunStore(tmp_path / "kept.db") as store:
         assert len(store.runs()) == 1

@@ -18,6 +18,7 @@ from metaopt.cli.common import (
     MAX_INT64,
     build_executor,
     check_executor_options,
+    check_store_path,
     console,
     db_option,
     errors,
@@ -326,7 +327,7 @@ def run_command(
         check_run(spec, optimizer_info, problem_info)
         click.echo(f"{optimizer_name} on {problem_name}: every setting accepted; nothing run")
         return
-    RunStore.check_path(db_path)  # refused first; created once run() has checked the rest
+    check_store_path(db_path)  # refused first; created once run() has checked the rest
     problem_info.checked_params(problem_params)  # refused before a worker starts
     label = f"{optimizer_name} on {problem_name}"
     pool = build_executor(executor, workers, scheduler)

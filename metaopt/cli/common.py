@@ -11,10 +11,11 @@ from pathlib import Path
 import click
 from rich.console import Console
 
+from metaopt.cli.output import check_output_file
 from metaopt.errors import ConfigError, MetaoptError
 from metaopt.executors.base import Executor, SerialExecutor
 from metaopt.plugins import registry
-from metaopt.storage.run_store import DEFAULT_DB
+from metaopt.storage.run_store import DEFAULT_DB, RunStore
 
 #: Output for a file or a pipe is never cut to a terminal's width: tables come out whole.
 console = Console() if sys.stdout.isatty() else Console(width=100_000)
@@ -101,3 +102,14 @@ def require_store(db_path: str) -> None:
     """MetaoptError unless a store file exists at db_path (reading commands never create one)."""
     if not Path(db_path).exists():
         raise MetaoptError(f"no run store at {db_path}; run `metaopt run` first or pass --db PATH")
+
+
+def check_store_path(db_path: str) -> None:
+    """StoreError or ConfigError unless a run can store in db_path, creating nothing: an
+    existing file is opened as it is (a directory, or a file that is no store, is refused), a
+    new one's folder must take files (check_output_file). `metaopt run` checks this first and
+    creates its store once every other setting has passed."""
+    if Path(db_path).exists():
+        RunStore(db_path).close()
+    else:
+        check_output_file(db_path, "--db")

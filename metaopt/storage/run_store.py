@@ -215,24 +215,6 @@ class RunStore:
         self._owned: set[int] = set()
         self._last_heartbeat = 0.0
 
-    @staticmethod
-    def check_path(path: str | Path) -> None:
-        """StoreError where no run store can be opened or created at ``path`` (a directory, a
-        file that is no metaopt store, a folder missing or not writable), leaving nothing
-        there: a run checks where its store goes first and creates it once every setting
-        passed."""
-        path = Path(path)
-        if path.exists():
-            RunStore(path).close()  # an existing file is opened as it is, or refused
-            return
-        if not path.parent.is_dir():
-            raise StoreError(f"--db {path}: folder {path.parent} does not exist; create it first")
-        try:  # a file made and removed at once: what the folder allows, not what it claims
-            path.touch(exist_ok=False)
-            path.unlink()
-        except OSError as error:
-            raise StoreError(f"cannot create a run store at {path}: {error.strerror}") from None
-
     def _check_or_create_schema(self) -> None:
         tables = {
             row[0]
