@@ -9,6 +9,7 @@ walked."""
 from __future__ import annotations
 
 import math
+import re
 
 import numpy as np
 import pytest
@@ -365,6 +366,54 @@ def test_world_cells_draws_each_evaluation_from_the_named_cells_pushed_or_not() 
         table_push.close()
     with pytest.raises(ConfigError, match="with worlds=none leave it empty"):
         _problem("mujoco", world_cells="nominal", **world)
+
+
+def test_cell_durations_walks_the_named_cells_longer_at_the_same_capped_speed() -> None:
+    """A cell given its own duration walks that long on every engine (read back from its
+    runners), capped at the same speed (engine_cap scaled by the walking time), and scores as
+    that cell's problem built by hand; the other cells and the drawn push are unchanged."""
+    world = {"duration": 7.0, "lock": 1.0, "noise": 0.1, "engine_cap": 1.0,
+             "fitness": "progress"}  # fmt: skip
+    engines = "mujoco+pybullet"
+    table = [cell.name for cell in STANDARD_TABLE.cells]
+    cells = "nominal,servo gain x1.2"
+    longer = _problem(engines, worlds="pushes", world_cells=cells,
+                      cell_durations="servo gain x1.2=9", **world)  # fmt: skip
+    plain = _problem(engines, worlds="pushes", world_cells=cells, **world)
+    x = gait_vector(load_gait())
+    try:
+        drawn = [longer.world_of(seed) for seed in range(40)]
+        servo, nominal = drawn.index(table.index("servo gain x1.2")), drawn.index(0)
+        walk, _, push = longer.walked(servo)
+        assert walk.episode.duration == 9.0 and walk.engine_cap == pytest.approx(8 / 6)
+        for engine in ("mujoco", "pybullet"):
+            runner = walk.runner_on(engine)
+            assert runner.walk_steps == round(8.0 / runner.backend.settings.control_period)
+            assert runner.backend.settings.servo_gain == pytest.approx(12.0)
+        assert push == plain.walked(servo)[2]  # drawn in the problem's own window
+        given = {"push": push.impulse, "push_direction": push.direction, "push_time": push.time}
+        by_hand = STANDARD_TABLE.cells[table.index("servo gain x1.2")].apply(
+            _params(engines, **{**world, "duration": 9.0, "engine_cap": 8 / 6}, **given)
+        )
+        expected = _evaluated(by_hand, x, servo)
+        evaluation = longer.evaluate(x, servo)
+        assert evaluation.fitness == expected.fitness
+        assert evaluation.metrics["time_walked"] == expected.metrics["time_walked"] > 6.0
+        assert longer.evaluate(x, nominal) == plain.evaluate(x, nominal)
+        assert longer.walked(nominal)[0].episode.duration == 7.0
+    finally:
+        longer.close()
+        plain.close()
+    for given, needle in (
+        ("servo gain x1.2", "expected 'NAME=SECONDS'"),
+        ("servo gain x1.2=1", "more than the lock (1 s)"),
+        ("servo gain x1.2=inf", "expected 'NAME=SECONDS'"),
+        ("latency 1=9", "'latency 1', which world_cells does not draw; accepted: nominal, servo"),
+    ):
+        with pytest.raises(ConfigError, match=re.escape(needle)):
+            _problem("mujoco", worlds="pushes", world_cells=cells, cell_durations=given, **world)
+    with pytest.raises(ConfigError, match=r"accepted: none \(set worlds and world_cells"):
+        _problem("mujoco", cell_durations="nominal=9", **world)
 
 
 def test_figures_and_video_show_the_world_an_evaluation_walked() -> None:

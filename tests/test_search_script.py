@@ -274,6 +274,8 @@ def test_the_flat_check_also_reads_the_share_of_the_last_candidates_that_fell(tm
          {"STAGE1B_SET": "engine_score=worst"}),
         ("STAGE1B_CELLS", "nominal,servo x2", "no perturbation 'servo x2'",
          {"STAGE1B_SET": "worlds=pushes"}),
+        ("STAGE1B_DURATIONS", "latency 1=15", "'latency 1', which world_cells does not draw",
+         {"STAGE1B_SET": "worlds=pushes", "STAGE1B_CELLS": "nominal,servo gain x1.2"}),
     ],
 )  # fmt: skip
 def test_a_bad_stage_setting_is_refused_by_metaopt_before_a_store_exists(

@@ -61,6 +61,11 @@
 # Design V is design U with STAGE1B_CELLS="nominal,nominal,nominal,servo gain x1.2,servo gain
 # x1.2,latency 1" (servo gain x1.2 drawn twice as often), on fresh seeds 111-113 (one PyBullet
 # fall in 110 episodes short of the goal as their median) and 114-116 (two falls short).
+# STAGE1B_DURATIONS="NAME=SECONDS,..." (with STAGE1B_CELLS) sets nao-walk's cell_durations in
+# stage 1b: the named cells walk that long, capped at the same speed (engine_cap scales with the
+# walking time), the others STAGE1B_SET's duration. Design X is design V with
+# STAGE1B_DURATIONS="servo gain x1.2=15,latency 1=15" (a 12 s walk in the cells where V's gaits
+# fell late, 7 s in the nominal world).
 # RECHECK_LAST=N re-checks each final stage 1b's TOP best among its N latest candidates
 # (metaopt robustness --last N) rather than among all: where stage 1b's scores tie at the cap,
 # its TOP best are otherwise the earliest of the tied. Design W is design V with
@@ -197,7 +202,7 @@
 # script at commit 5ed7043, the seventh at 3c42de4, the sixth at 6e1fe34, the fifth at
 # 3c8db53, the fourth at ff6956d, the third at abce00d, the second at 9d03e62.
 set -euo pipefail
-seed=${1:?usage: [DEADLINE=SECONDS LATER_STAGES=SECONDS|auto STAGE1_TIME=SECONDS STAGE1_OPTIMIZER=NAME STAGE1_BATCH=B BASIN_FELL=RATE RACE_FELL=RATE RACE_SEEDS=N STAGE1B_BUDGET=N STAGE1B_OPTIMIZER=NAME STAGE1B_BATCH=B STAGE1B_SCREEN=1 PIPELINES=N STAGE1_RUNS=R STAGE1B_RESAMPLE=K STAGE1B_COMMON=run|batch TOP=K RECHECK_LAST=N STAGE1_ENGINE=E STAGE1_SET="NAME=VALUE ..." STAGE1B_START=all|raced|pool STAGE1B_SET="NAME=VALUE ..." STAGE1B_CELLS="NAME,..." FLAT_BEST=METRES FLAT_FELL=SHARE FINALS="RUN ..."] robust-walk-search.sh SEED}
+seed=${1:?usage: [DEADLINE=SECONDS LATER_STAGES=SECONDS|auto STAGE1_TIME=SECONDS STAGE1_OPTIMIZER=NAME STAGE1_BATCH=B BASIN_FELL=RATE RACE_FELL=RATE RACE_SEEDS=N STAGE1B_BUDGET=N STAGE1B_OPTIMIZER=NAME STAGE1B_BATCH=B STAGE1B_SCREEN=1 PIPELINES=N STAGE1_RUNS=R STAGE1B_RESAMPLE=K STAGE1B_COMMON=run|batch TOP=K RECHECK_LAST=N STAGE1_ENGINE=E STAGE1_SET="NAME=VALUE ..." STAGE1B_START=all|raced|pool STAGE1B_SET="NAME=VALUE ..." STAGE1B_CELLS="NAME,..." STAGE1B_DURATIONS="NAME=SECONDS,..." FLAT_BEST=METRES FLAT_FELL=SHARE FINALS="RUN ..."] robust-walk-search.sh SEED}
 stage1b_budget=${STAGE1B_BUDGET:-600}
 stage1b_optimizer=${STAGE1B_OPTIMIZER:-hs}
 stage1b_batch=${STAGE1B_BATCH:-2}
@@ -311,6 +316,9 @@ elif [ -n "${STAGE1B_COMMON:-}" ]; then
 fi
 for pair in ${STAGE1B_SET:-}; do stage1b_run+=(--set "$pair"); done
 if [ -n "${STAGE1B_CELLS:-}" ]; then stage1b_run+=(--set "world_cells=$STAGE1B_CELLS"); fi
+if [ -n "${STAGE1B_DURATIONS:-}" ]; then
+    stage1b_run+=(--set "cell_durations=$STAGE1B_DURATIONS")
+fi
 db=robust-walk-s$seed.db
 if [ -n "${FINALS:-}" ]; then
     if ! [ -e "$db" ]; then

@@ -178,6 +178,11 @@ PARAMS = (
           "world), and a push cell's evaluation gets that cell's push instead of a drawn one; "
           "a cell named k times is drawn k times as often, e.g. "
           "'nominal,servo gain x1.2,latency 1' or 'nominal,nominal,servo gain x1.2'"),
+    Param("cell_durations", str, "", "with world_cells: some of its cells walked for another "
+          f"duration, s, as 'NAME=SECONDS' joined by '{CELL_SEPARATOR}' (the others walk "
+          "duration); engine_cap scales with the walking time, so the cap is the same speed in "
+          "every cell; e.g. 'servo gain x1.2=15,latency 1=15': a short walk in most worlds, a "
+          "long one where gaits fall late"),
 )  # fmt: skip
 
 
@@ -225,6 +230,35 @@ def _cell_indices(world_cells: str, worlds: str) -> tuple[int, ...]:
     )
 
 
+def _cell_durations(
+    cell_durations: str, world_cells: tuple[int, ...], lock: float
+) -> dict[int, float]:
+    """The durations cell_durations gives, by cell index; ConfigError for an entry that is no
+    'NAME=SECONDS', a cell world_cells does not draw, or a walk no longer than the lock."""
+    if not cell_durations:
+        return {}
+    durations: dict[int, float] = {}
+    drawn = {STANDARD_TABLE.cells[cell].name: cell for cell in world_cells}
+    for entry in cell_durations.split(CELL_SEPARATOR):
+        name, _, seconds = (part.strip() for part in entry.rpartition("="))
+        try:
+            duration = float(seconds)
+        except ValueError:
+            duration = math.nan
+        if not name or not lock < duration < math.inf:
+            raise ConfigError(
+                f"nao-walk: cell_durations entry {entry.strip()!r}: expected 'NAME=SECONDS' "
+                f"with SECONDS more than the lock ({lock:g} s), e.g. 'latency 1=15'"
+            )
+        if name not in drawn:
+            raise ConfigError(
+                f"nao-walk: cell_durations names {name!r}, which world_cells does not draw; "
+                f"accepted: {', '.join(drawn) or 'none (set worlds and world_cells first)'}"
+            )
+        durations[drawn[name]] = duration
+    return durations
+
+
 class NaoWalk(Problem):
     """The paper's task on one physics backend (or several, scored by engine_score). With noise
     0 the seed is not used; with noise > 0 it draws the episode's Disturbance. Either way
@@ -259,6 +293,7 @@ class NaoWalk(Problem):
         flight_allowed: float = FLIGHT_ALLOWED,
         worlds: str = "none",
         world_cells: str = "",
+        cell_durations: str = "",
         engine_score: str = "worst",
         engine_cap: float = 0.0,
         screen_engines: str = "",
@@ -324,6 +359,8 @@ class NaoWalk(Problem):
         self.screen_engines = self._screen_engines(screen_engines)
         #: the standard table's cells an evaluation's seed draws from (none: its own world)
         self.world_cells = _cell_indices(world_cells, worlds)
+        #: the cells walked for another duration than this problem's, by index
+        self.cell_durations = _cell_durations(cell_durations, self.world_cells, lock)
         self._worlds: dict[int, NaoWalk] = {}
         for cell in self.world_cells:
             self._world(cell).close()  # a world refusing its parameters says so now
@@ -404,6 +441,10 @@ class NaoWalk(Problem):
         world = self._worlds.get(cell)
         if world is None:
             params = STANDARD_TABLE.cells[cell].apply({**self._params, **UNSAMPLED})
+            duration = self.cell_durations.get(cell)
+            if duration is not None:  # the same cap per second walked
+                walking = (duration - params["lock"]) / (params["duration"] - params["lock"])
+                params.update(duration=duration, engine_cap=params["engine_cap"] * walking)
             world = self._worlds[cell] = NaoWalk(**params)
         return world
 

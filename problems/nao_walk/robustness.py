@@ -36,7 +36,7 @@ def unlimited_friction(problem: Problem) -> str | None:
 
 
 #: The parameters that make an evaluation draw its world; a world drawn is walked without them.
-UNSAMPLED = {"worlds": "none", "world_cells": ""}
+UNSAMPLED = {"worlds": "none", "world_cells": "", "cell_durations": ""}
 
 
 #: Every cell starts from the gait's parameters with these perturbations at their nominal
