@@ -5,6 +5,7 @@ median over the searches, checked against goals; bad input is one clear line."""
 from __future__ import annotations
 
 import csv
+import re
 import statistics
 from pathlib import Path
 
@@ -115,6 +116,11 @@ def test_tables_from_before_a_metric_joined_their_version_are_compared_on_those_
     rows = _rows(tmp_path / "n.csv")
     assert [r["time_to_fall"] for r in rows if r["engine"] == "ode"] == ["3.0", "nan", "3.0"]
     assert "–" in both.stdout and "nan" not in both.stdout  # the steady one's: none fell
+    steady = metaopt_cli("robustness-summary", "steady.csv", "--against", "steady.csv",
+                         cwd=tmp_path)  # fmt: skip
+    assert steady.returncode == 0, steady.stderr
+    assert "nan" not in steady.stdout  # no pair measured time_to_fall: a dash, not +nan
+    assert re.search(r"ode\s.*│\s+–\s+│", steady.stdout.split("pair by pair")[1])
     mixed = metaopt_cli("robustness-summary", "new.csv", "old.csv", "--against", "old.csv",
                         "--against", "new.csv", "--csv", "m.csv", cwd=tmp_path)  # fmt: skip
     assert mixed.returncode == 0, mixed.stderr

@@ -535,7 +535,8 @@ def search_medians_table(tables: Sequence, summary: Medians) -> Table:
 def paired_differences_table(paired: PairedDifferences, metrics: Sequence[str]) -> Table:
     """`metaopt robustness-summary ... --against ...`: per engine and metric, the median of
     the pairs' differences (a rate's in percentage points), how many went up and down, and
-    the sign test's p-value."""
+    the sign test's p-value; a dash where no pair measured the metric (time_to_fall where
+    none fell)."""
     table = Table(title=f"{paired.count} searches against their --against tables, pair by "
                   "pair: the median difference (pairs up / down, two-sided sign test p)",
                   title_justify="left")  # fmt: skip
@@ -545,6 +546,9 @@ def paired_differences_table(paired: PairedDifferences, metrics: Sequence[str]) 
         cells = []
         for metric in metrics:
             value = medians[metric]
+            if math.isnan(value):
+                cells.append("–")
+                continue
             shown = f"{value * 100:+.1f} pp" if is_rate(metric) else f"{value:+.3f}"
             up, down = paired.up[engine][metric], paired.down[engine][metric]
             cells.append(f"{shown} ({up}↑ {down}↓, p {paired.sign_test(engine, metric):.2f})")

@@ -437,7 +437,8 @@ class NaoWalk(Problem):
         return Push(PUSH_IMPULSE, direction, time)
 
     def _world(self, cell: int) -> NaoWalk:
-        """The problem of one cell of the standard table, built on first use."""
+        """The problem of one cell of the standard table, built on first use (walking the
+        cell's own duration where cell_durations gives one)."""
         world = self._worlds.get(cell)
         if world is None:
             params = STANDARD_TABLE.cells[cell].apply({**self._params, **UNSAMPLED})
