@@ -68,6 +68,15 @@ def test_the_summary_is_the_median_over_the_searches_of_each_whole_table_figure(
         assert float(medians[engine]["|drift|"]) == pytest.approx(statistics.median(drift))
     # ode's fall rates are 0, 1/4 and 2/4: their median is 1/4
     assert float(medians["ode"]["fell"]) == pytest.approx(0.25)
+    # the spread over the searches: each figure's sample standard deviation over them
+    spreads = {r["engine"]: r for r in rows if r["search"] == "sd over 3"}
+    for engine in ("mujoco", "ode"):
+        per_search = [statistics.median(s[engine]) for s in speeds.values()]
+        assert float(spreads[engine]["speed"]) == pytest.approx(statistics.stdev(per_search))
+    assert float(spreads["ode"]["fell"]) == pytest.approx(0.25)  # 0, 1/4, 2/4
+    assert float(spreads["mujoco"]["fell"]) == 0.0
+    shown = re.search(r"sd over 3\s*│\s*│\s*ode\s*│\s*(\S+)", done.stdout)
+    assert shown and float(shown[1]) == pytest.approx(statistics.stdev([0.45, 0.5, 0.75]), abs=5e-4)
     assert [(r["search"], r["engine"]) for r in rows[:2]] == [("s1.csv", "mujoco"),
                                                               ("s1.csv", "ode")]  # fmt: skip
     # mujoco's medians: speeds 0.65, 0.45, 0.3 -> 0.45; ode: 0.45, 0.5, 0.75 -> 0.5, falls 25 %
@@ -114,7 +123,9 @@ def test_tables_from_before_a_metric_joined_their_version_are_compared_on_those_
                        cwd=tmp_path)  # fmt: skip
     assert both.returncode == 0, both.stderr
     rows = _rows(tmp_path / "n.csv")
-    assert [r["time_to_fall"] for r in rows if r["engine"] == "ode"] == ["3.0", "nan", "3.0"]
+    # new, steady, their median, their sd: one search measured it, so no spread
+    ode = [r["time_to_fall"] for r in rows if r["engine"] == "ode"]
+    assert ode == ["3.0", "nan", "3.0", "nan"]
     assert "–" in both.stdout and "nan" not in both.stdout  # the steady one's: none fell
     steady = metaopt_cli("robustness-summary", "steady.csv", "--against", "steady.csv",
                          cwd=tmp_path)  # fmt: skip
@@ -142,6 +153,17 @@ def test_a_table_of_several_candidates_is_refused(tmp_path: Path) -> None:
     done = metaopt_cli("robustness-summary", "race.csv", cwd=tmp_path)
     assert done.returncode == 2
     assert "race.csv: holds 2 candidates (run 1 candidate 3, run 2 candidate 7)" in done.stderr
+
+
+def test_one_search_has_no_spread_to_show(tmp_path: Path) -> None:
+    """A standard deviation needs two searches: with one, every figure's is a dash (NaN in the
+    CSV), a rate's too, never a number made up."""
+    _search(tmp_path / "s1.csv", "run 1", {"mujoco": [0.5, 0.6]}, falls=0)
+    done = metaopt_cli("robustness-summary", "s1.csv", "--csv", "out.csv", cwd=tmp_path)
+    assert done.returncode == 0, done.stderr
+    assert re.search(r"sd over 1\s*│\s*│\s*mujoco\s*│\s*–\s*│\s*–\s*│\s*–", done.stdout)
+    spread = next(r for r in _rows(tmp_path / "out.csv") if r["search"] == "sd over 1")
+    assert all(np.isnan(float(spread[m])) for m in ("speed", "|drift|", "fell", "flight"))
 
 
 def test_a_failed_evaluation_misses_every_goal_on_its_engine(tmp_path: Path) -> None:

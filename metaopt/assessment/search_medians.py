@@ -132,11 +132,13 @@ def alike(tables: Sequence[SearchTable]) -> list[SearchTable]:
 
 @dataclass(frozen=True)
 class Medians:
-    """Per engine, each metric's median over the searches (NaN where none measured it), and
-    the failed evaluations of all the searches together."""
+    """Per engine, each metric's median over the searches (NaN where none measured it), its
+    standard deviation over them (how far one search's figure strays from the design's: NaN
+    where fewer than two measured it), and the failed evaluations of all the searches."""
 
     count: int
     figures: dict[str, dict[str, float]]
+    spread: dict[str, dict[str, float]]
     failed: dict[str, int]
 
 
@@ -144,14 +146,16 @@ def medians(tables: Sequence[SearchTable]) -> Medians:
     """The medians over the searches, computed once for the display, the verdict and the
     CSV."""
     figures: dict[str, dict[str, float]] = {}
+    spread: dict[str, dict[str, float]] = {}
     for engine in tables[0].figures:
-        figures[engine] = {}
+        figures[engine], spread[engine] = {}, {}
         for metric in tables[0].metrics:
             values = [t.figures[engine][metric] for t in tables]
             values = [v for v in values if not math.isnan(v)]
             figures[engine][metric] = statistics.median(values) if values else math.nan
+            spread[engine][metric] = statistics.stdev(values) if len(values) > 1 else math.nan
     failed = {engine: sum(t.failed[engine] for t in tables) for engine in figures}
-    return Medians(len(tables), figures, failed)
+    return Medians(len(tables), figures, spread, failed)
 
 
 @dataclass(frozen=True)
@@ -265,8 +269,9 @@ def write_medians(
     paired: PairedDifferences | None = None,
 ) -> None:
     """One row per search and engine, then one per engine for the median over the searches
-    (search 'median of N'), and with ``paired`` one per engine for the median paired
-    difference (search 'median difference of N pairs'). Written whole or not at all."""
+    (search 'median of N') and one for the standard deviation over them ('sd over N'), and
+    with ``paired`` one per engine for the median paired difference (search 'median
+    difference of N pairs'). Written whole or not at all."""
     metrics = tables[0].metrics
     rows = [
         [t.source, t.candidate, engine, t.failed[engine], *(figures[m] for m in metrics)]
@@ -278,6 +283,10 @@ def write_medians(
          *(figures[m] for m in metrics)]
         for engine, figures in summary.figures.items()
     ]  # fmt: skip
+    rows += [
+        [f"sd over {summary.count}", "", engine, "", *(spread[m] for m in metrics)]
+        for engine, spread in summary.spread.items()
+    ]
     if paired is not None:
         rows += [
             [f"median difference of {paired.count} pairs", "", engine, "",

@@ -257,8 +257,8 @@ def _alike_with_goals(
 @output_file_option(
     "--csv",
     "csv_path",
-    "Write the figures as CSV here: each search's per engine, then the medians (and the "
-    "median paired differences).",
+    "Write the figures as CSV here: each search's per engine, then the medians and standard "
+    "deviations over the searches (and the median paired differences).",
     suffix=".csv",
 )
 @output_file_option(
@@ -277,7 +277,8 @@ def robustness_summary_command(
 ) -> None:
     """Summarise several searches of one design: each CSV is one search's chosen candidate
     over the perturbation table (robustness --csv); shows each search's whole-table figures
-    per engine and their median over the searches, against the goals. A search is one
+    per engine and their median and standard deviation over the searches, against the
+    goals. A search is one
     chaotic trajectory: a design is judged by medians over its seeds, and two designs run on
     the same seeds by their paired differences (--against)."""
     tables = [search_medians.read_table(path) for path in csv_paths]

@@ -513,10 +513,11 @@ def robustness_table(
 
 def search_medians_table(tables: Sequence, summary: Medians) -> Table:
     """`metaopt robustness-summary`: each search's whole-table figures per engine (a metric's
-    median, a rate's value), then per engine their median over the searches below a line."""
+    median, a rate's value), then per engine their median and standard deviation over the
+    searches below a line."""
     first = tables[0]
     table = Table(title=f"{len(tables)} searches over perturbation table {first.version}: "
-                  "whole table per engine, and the median over the searches",
+                  "whole table per engine, and the median and sd over the searches",
                   title_justify="left")  # fmt: skip
     for name in ("search", "candidate", "engine"):
         table.add_column(name)
@@ -529,6 +530,9 @@ def search_medians_table(tables: Sequence, summary: Medians) -> Table:
     for engine, figures in summary.figures.items():
         table.add_row(f"median of {summary.count}", "", engine,
                       *_figure_cells(first.metrics, figures))  # fmt: skip
+    for engine, spread in summary.spread.items():
+        table.add_row(f"sd over {summary.count}", "", engine,
+                      *_figure_cells(first.metrics, spread))  # fmt: skip
     return table
 
 
@@ -592,9 +596,10 @@ def _add_figure_columns(table: Table, metrics: Sequence[str]) -> None:
 
 
 def _figure_cells(metrics: Sequence[str], figures: dict[str, float]) -> list[str]:
-    """A table's whole-table figures as shown: a rate in %, a median to 3 decimals."""
-    return [f"{figures[m]:.1%}" if is_rate(m) else _median_cell(figures[m])
-            for m in metrics]  # fmt: skip
+    """A table's whole-table figures as shown: a rate in %, a median to 3 decimals, a dash
+    where none was measured."""
+    return [f"{figures[m]:.1%}" if is_rate(m) and not math.isnan(figures[m])
+            else _median_cell(figures[m]) for m in metrics]  # fmt: skip
 
 
 def _median_cell(value: float) -> str:
