@@ -143,8 +143,8 @@ class Medians:
 
 
 def medians(tables: Sequence[SearchTable]) -> Medians:
-    """The medians over the searches, computed once for the display, the verdict and the
-    CSV."""
+    """The medians and standard deviations over the searches, computed once for the
+    display, the verdict and the CSV."""
     figures: dict[str, dict[str, float]] = {}
     spread: dict[str, dict[str, float]] = {}
     for engine in tables[0].figures:

@@ -278,9 +278,8 @@ def robustness_summary_command(
     """Summarise several searches of one design: each CSV is one search's chosen candidate
     over the perturbation table (robustness --csv); shows each search's whole-table figures
     per engine and their median and standard deviation over the searches, against the
-    goals. A search is one
-    chaotic trajectory: a design is judged by medians over its seeds, and two designs run on
-    the same seeds by their paired differences (--against)."""
+    goals. A search is one chaotic trajectory: a design is judged by medians over its seeds,
+    and two designs run on the same seeds by their paired differences (--against)."""
     tables = [search_medians.read_table(path) for path in csv_paths]
     baselines = [search_medians.read_table(path) for path in against_paths]
     compared, goals = _alike_with_goals([*tables, *baselines], goal_texts)
