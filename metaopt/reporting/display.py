@@ -505,7 +505,7 @@ def robustness_table(
         cells = [f"{median:.3f}", f"{low:.3f} to {high:.3f}"]
         for metric in metrics[1:]:
             value = result.summary(metric)[0]
-            cells.append(f"{value:.0%}" if is_rate(metric) else _median_cell(value))
+            cells.append(_figure_cell(value, ".0%" if is_rate(metric) else ".3f"))
         seeds = f"{len(result.samples)}" + (f" ({result.failed} failed)" if result.failed else "")
         table.add_row(result.cell, result.engine, seeds, *cells)
     return table
@@ -598,14 +598,13 @@ def _add_figure_columns(table: Table, metrics: Sequence[str]) -> None:
 def _figure_cells(metrics: Sequence[str], figures: dict[str, float]) -> list[str]:
     """A table's whole-table figures as shown: a rate in %, a median to 3 decimals, a dash
     where none was measured."""
-    return [f"{figures[m]:.1%}" if is_rate(m) and not math.isnan(figures[m])
-            else _median_cell(figures[m]) for m in metrics]  # fmt: skip
+    return [_figure_cell(figures[m], ".1%" if is_rate(m) else ".3f") for m in metrics]
 
 
-def _median_cell(value: float) -> str:
-    """A median to 3 decimals; a dash where no episode measured it (time_to_fall where none
-    fell)."""
-    return "–" if math.isnan(value) else f"{value:.3f}"
+def _figure_cell(value: float, shown_as: str) -> str:
+    """A figure in format ``shown_as``; a dash where nothing measured it (time_to_fall where
+    none fell, a spread over fewer than two searches)."""
+    return "–" if math.isnan(value) else format(value, shown_as)
 
 
 def _engine_cell(table: SearchTable, engine: str) -> str:
