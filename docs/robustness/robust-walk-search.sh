@@ -67,7 +67,8 @@
 # STAGE1B_DURATIONS="servo gain x1.2=15,latency 1=15" (a 12 s walk in the cells where V's gaits
 # fell late, 7 s in the nominal world).
 # Design Y is design X with STAGE1_RUNS=4 STAGE1_TIME=280 (stage 1b gets the 210 s of three
-# stage-1 runs), on fresh seeds 126-128.
+# stage-1 runs), on fresh seeds 126-128 (PyBullet's and ODE's speed missed as their median; seed
+# 126 within the goal).
 # RECHECK_LAST=N re-checks each final stage 1b's TOP best among its N latest candidates
 # (metaopt robustness --last N) rather than among all: where stage 1b's scores tie at the cap,
 # its TOP best are otherwise the earliest of the tied. Design W is design V with
