@@ -527,12 +527,12 @@ def search_medians_table(tables: Sequence, summary: Medians) -> Table:
             table.add_row(search.source, search.candidate, _engine_cell(search, engine),
                           *_figure_cells(first.metrics, figures))  # fmt: skip
     table.add_section()
-    for engine, figures in summary.figures.items():
-        table.add_row(f"median of {summary.count}", "", engine,
-                      *_figure_cells(first.metrics, figures))  # fmt: skip
-    for engine, spread in summary.spread.items():
-        table.add_row(f"sd over {summary.count}", "", engine,
-                      *_figure_cells(first.metrics, spread))  # fmt: skip
+    for label, per_engine in (
+        (f"median of {summary.count}", summary.figures),
+        (f"sd over {summary.count}", summary.spread),
+    ):
+        for engine, figures in per_engine.items():
+            table.add_row(label, "", engine, *_figure_cells(first.metrics, figures))
     return table
 
 
