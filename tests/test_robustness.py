@@ -5,6 +5,7 @@ through the real command, deterministic whatever runs the evaluations."""
 from __future__ import annotations
 
 import csv
+import math
 from dataclasses import replace
 from pathlib import Path
 
@@ -237,6 +238,25 @@ def test_time_to_fall_is_the_median_over_the_episodes_that_fell_of_the_time_they
     assert median == pytest.approx(float(np.median(fallen)))
     assert (low, high) == pytest.approx(tuple(np.percentile(fallen, [25, 75])))
     assert median < 15.0 - 3.0  # before the walk's end, which most episodes' time_walked is
+
+
+def test_a_goal_on_the_time_to_fall_holds_for_a_gait_that_never_fell() -> None:
+    """time_to_fall is measured on the episodes that fell alone: with none fallen a bound on
+    it holds (+inf margin), not fails on a median of nothing; one that fell is judged by the
+    median of its falls; a metric nothing measured still misses (-inf)."""
+    (later,) = [parse_goal("time_to_fall>=5", STANDARD_TABLE.metrics, STANDARD_TABLE.version,
+                           STANDARD_TABLE.only_when)]  # fmt: skip
+    assert later.only_when == "fell"
+    steady = CellResult("all", "mujoco", [{"speed": 0.5, "fell": 0.0}] * 4, 0)
+    falling = CellResult("all", "mujoco", [
+        {"speed": 0.5, "fell": 1.0, "time_to_fall": t} for t in (2.0, 3.0, 4.0)
+    ] + [{"speed": 0.5, "fell": 0.0}], 0)  # fmt: skip
+    assert later.margin(steady) == math.inf
+    assert later.margin(falling) == pytest.approx((3.0 - 5.0) / 5.0)
+    assert later.margin(CellResult("all", "mujoco", [{"fell": 0.0}] * 2, 1)) == -math.inf
+    unmeasured = parse_goal("flight<=0.05", STANDARD_TABLE.metrics, STANDARD_TABLE.version,
+                            STANDARD_TABLE.only_when)  # fmt: skip
+    assert unmeasured.only_when is None and unmeasured.margin(steady) == -math.inf
 
 
 def test_robustness_command_refuses_bad_input_in_one_line(tmp_path: Path) -> None:

@@ -14,6 +14,7 @@ import pytest
 
 from metaopt.assessment.candidates import Candidate
 from metaopt.assessment.robustness import CellResult, PerturbationTable, whole_table, write_csv
+from metaopt_problems.nao_walk.robustness import STANDARD_TABLE
 from tests.conftest import metaopt_cli
 
 TABLE = PerturbationTable("t-1", (), ("speed", "|drift|", "fell", "flight"))
@@ -140,6 +141,28 @@ def test_tables_from_before_a_metric_joined_their_version_are_compared_on_those_
     assert "time_to_fall" not in mixed.stdout
     paired = {r["engine"]: r for r in rows if r["search"] == "median difference of 2 pairs"}
     assert float(paired["ode"]["fell"]) == pytest.approx(0.0)  # +0.5 and -0.5 pair off
+
+
+def test_a_goal_on_the_time_to_fall_is_met_by_a_search_whose_gait_never_fell(
+    tmp_path: Path,
+) -> None:
+    """On the installed table (nao-walk-3 declares time_to_fall measured where a gait fell),
+    a search whose gait never fell meets time_to_fall>=3.5; one whose ode episodes fell at 2,
+    3 and 4 s misses it there (median 3 s), and meets it on mujoco, where none fell."""
+    table = PerturbationTable(STANDARD_TABLE.version, (), (*TABLE.metrics, "time_to_fall"))
+    speeds = {"mujoco": [0.5, 0.6, 0.5, 0.6], "ode": [0.5, 0.5, 0.6, 0.6]}
+    _search(tmp_path / "steady.csv", "run 1", speeds, falls=0, table=table)
+    _search(tmp_path / "early.csv", "run 2", speeds, falls=3, table=table)
+    for name, verdict in (("steady.csv", "meets all"), ("early.csv", "misses time_to_fall")):
+        done = metaopt_cli("robustness-summary", name, "--goal", "time_to_fall>=3.5",
+                           cwd=tmp_path)  # fmt: skip
+        assert done.returncode == 0, done.stderr
+        assert "mujoco: meets all" in done.stdout
+        assert f"ode: {verdict}" in done.stdout
+    ranked = metaopt_cli("robustness-rank", "early.csv", "steady.csv", "--goal",
+                         "time_to_fall>=3.5", cwd=tmp_path)  # fmt: skip
+    assert ranked.returncode == 0, ranked.stderr
+    assert ranked.stdout.index("steady.csv") < ranked.stdout.index("early.csv")
 
 
 def test_a_table_of_several_candidates_is_refused(tmp_path: Path) -> None:

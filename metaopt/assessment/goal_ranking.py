@@ -16,7 +16,7 @@ from metaopt.assessment.search_medians import SearchTable
 @dataclass(frozen=True)
 class GoalRanked:
     """A candidate's table with the (goal, engine) pairs it misses and its smallest margin to
-    a goal on any engine (Goal.margin_of)."""
+    a goal on any engine (Goal.margin_in)."""
 
     table: SearchTable
     missed: int
@@ -30,7 +30,7 @@ def rank_by_goals(tables: Sequence[SearchTable], goals: Sequence[Goal]) -> list[
     ranked = []
     for table in tables:
         margins = [
-            goal.margin_of(figures[goal.metric], table.failed[engine])
+            goal.margin_in(figures, table.failed[engine])
             for goal in goals
             for engine, figures in table.figures.items()
         ]

@@ -67,6 +67,10 @@ class PerturbationTable:
     cells: tuple[Perturbation, ...]
     metrics: tuple[str, ...]
     common: Mapping[str, Any] = field(default_factory=dict)
+    #: metrics an episode reports only when an event happened, each with the rate that counts
+    #: the event (nao-walk's time_to_fall, only where the episode fell): a goal on one holds
+    #: where no episode had the event, rather than failing on a median of nothing
+    only_when: Mapping[str, str] = field(default_factory=dict)
 
 
 @dataclass
@@ -233,26 +237,38 @@ class Goal:
     metric: str
     at_least: bool
     threshold: float
+    #: the rate of the event the metric is reported with alone (PerturbationTable.only_when)
+    only_when: str | None = None
 
     def __str__(self) -> str:
         return f"{self.metric}{'>=' if self.at_least else '<='}{self.threshold:g}"
 
     def margin(self, row: CellResult) -> float:
-        """margin_of the row's figure for the metric (its median; a rate's value)."""
-        return self.margin_of(row.summary(self.metric)[0], row.failed)
+        """margin_in the row's figures (medians; a rate's value)."""
+        names = [self.metric] if self.only_when is None else [self.metric, self.only_when]
+        return self.margin_in({name: row.summary(name)[0] for name in names}, row.failed)
 
-    def margin_of(self, value: float, failed: int = 0) -> float:
-        """How far inside the bound a figure is, relative to the threshold (absolute for a
-        threshold of 0): negative outside it, -inf where an evaluation failed."""
-        if failed or math.isnan(value):
+    def margin_in(self, figures: Mapping[str, float], failed: int = 0) -> float:
+        """How far inside the bound one engine's figure is, relative to the threshold
+        (absolute for a threshold of 0): negative outside it, -inf where an evaluation failed
+        or nothing measured it, +inf where the metric comes with an event that never happened
+        (a time to fall of a gait that never fell)."""
+        value = figures.get(self.metric, math.nan)
+        if failed:
             return -math.inf
+        if math.isnan(value):
+            no_event = self.only_when is not None and figures.get(self.only_when) == 0
+            return math.inf if no_event else -math.inf
         slack = value - self.threshold if self.at_least else self.threshold - value
         return slack / abs(self.threshold) if self.threshold else slack
 
 
-def parse_goal(text: str, metrics: Sequence[str], version: str) -> Goal:
+def parse_goal(
+    text: str, metrics: Sequence[str], version: str, only_when: Mapping[str, str] | None = None
+) -> Goal:
     """``METRIC>=VALUE`` or ``METRIC<=VALUE``, METRIC one of ``metrics`` (those of table
-    ``version``); ConfigError naming what is accepted otherwise."""
+    ``version``, whose ``only_when`` it carries); ConfigError naming what is accepted
+    otherwise."""
     for operator in (">=", "<="):
         metric, found, value = text.partition(operator)
         if found and metric.strip() in metrics:
@@ -261,7 +277,8 @@ def parse_goal(text: str, metrics: Sequence[str], version: str) -> Goal:
             except ValueError:
                 break
             if math.isfinite(threshold):
-                return Goal(metric.strip(), operator == ">=", threshold)
+                name = metric.strip()
+                return Goal(name, operator == ">=", threshold, (only_when or {}).get(name))
     raise ConfigError(
         f"goal {text!r}: write METRIC>=VALUE or METRIC<=VALUE with a finite VALUE and a "
         f"metric of table {version} ({', '.join(metrics)})"

@@ -208,7 +208,7 @@ def paired_differences(
 
 def missed_goals(figures: dict[str, float], failed: int, goals: Sequence[Goal]) -> list[Goal]:
     """The goals one engine's figures miss (every goal, where an evaluation failed)."""
-    return [goal for goal in goals if goal.margin_of(figures[goal.metric], failed) < 0]
+    return [goal for goal in goals if goal.margin_in(figures, failed) < 0]
 
 
 def within_goals(tables: Sequence[SearchTable], goals: Sequence[Goal]) -> list[SearchTable]:

@@ -129,7 +129,9 @@ def robustness_command(
     table = robustness.select_cells(
         info.perturbations, [c.strip() for c in cells.split(",")] if cells is not None else None
     )
-    goals = [robustness.parse_goal(t, table.metrics, table.version) for t in goal_texts]
+    goals = [
+        robustness.parse_goal(t, table.metrics, table.version, table.only_when) for t in goal_texts
+    ]
     # a figure it cannot draw: refused before any work
     drawn_metrics = (
         None if figure_path is None else robustness.figure_metrics(table.metrics, table.version)
@@ -229,10 +231,20 @@ def _alike_with_goals(
     tables: list[search_medians.SearchTable], goal_texts: tuple[str, ...]
 ) -> tuple[list[search_medians.SearchTable], list[robustness.Goal]]:
     """The tables on the metrics they share, once checked alike, and the goals parsed
-    against those metrics."""
+    against those metrics (and the installed table's only_when, where its version is one)."""
     tables = search_medians.alike(tables)
     first = tables[0]
-    return tables, [robustness.parse_goal(t, first.metrics, first.version) for t in goal_texts]
+    only_when = next(
+        (
+            info.perturbations.only_when
+            for info in registry().problems.values()
+            if info.perturbations is not None and info.perturbations.version == first.version
+        ),
+        {},
+    )
+    return tables, [
+        robustness.parse_goal(t, first.metrics, first.version, only_when) for t in goal_texts
+    ]
 
 
 @click.command("robustness-summary")

@@ -77,4 +77,5 @@ STANDARD_TABLE = PerturbationTable(
     # unchanged): the median over the episodes that fell of the seconds they walked first
     metrics=("speed", "|drift|", "fell", "flight", "time_to_fall"),
     common={**NOMINAL_WORLD, "noise": BACKGROUND_NOISE, "measure_flight": True},
+    only_when={"time_to_fall": "fell"},
 )  # fmt: skip
