@@ -5,12 +5,13 @@ from __future__ import annotations
 
 import csv
 import io
+from dataclasses import replace
 
 import numpy as np
 import pytest
 
 from metaopt.errors import ConfigError
-from metaopt.reporting.history import run_history
+from metaopt.reporting.history import candidate_spread, run_history
 from tests.conftest import evaluation_record, metaopt_cli
 
 RUN = [
@@ -76,3 +77,43 @@ def test_the_command_agrees_with_the_exported_evaluations(tmp_path):
     assert refused.stderr.strip().splitlines() == [
         "Error: no metric 'fell' in this run's evaluations; they report: none"
     ]
+
+
+def test_the_spread_is_the_median_over_the_variables_of_the_candidates_sd_per_range():
+    """Three candidates, the third evaluated twice (a resample counts once): on a variable of
+    range 10 they stand at 0, 2 and 4 (sd 2: 0.2 of the range), on one of range 1 at 0.1, 0.1
+    and 0.4 (sd 0.173), on one of range 2 all at 1 (0): the median share is 0.173."""
+    points = {0: [0.0, 0.1, 1.0], 1: [2.0, 0.1, 1.0], 2: [4.0, 0.4, 1.0]}
+    records = [
+        replace(evaluation_record(i, 1.0), candidate=c, x=np.array(points[c]))
+        for i, c in enumerate((0, 1, 2, 2))
+    ]
+    widths = [10.0, 1.0, 2.0]
+    assert candidate_spread(records, widths) == pytest.approx(np.std([0.1, 0.1, 0.4], ddof=1))
+    assert candidate_spread(records[2:], widths) is None  # one candidate: no spread
+    history = run_history(records, window=3, maximize=True, widths=widths)
+    assert [w.spread for w in history.windows] == [pytest.approx(np.sqrt(0.03)), None]
+    assert run_history(records, window=3, maximize=True).windows[0].spread is None
+
+
+def test_the_command_shows_cma_es_step_shrinking_on_the_sphere(tmp_path):
+    """CMA-ES's first generation is uniform in the box (a spread near 1/sqrt(12) = 0.29 of each
+    range); on the sphere its step then shrinks towards the minimum, and with it the spread."""
+    env = {"METAOPT_LOAD_PLUGINS": "cma_es,functions"}
+    done = metaopt_cli(
+        "run", "-o", "cmaes", "-p", "sphere", "--budget", "400", "--seed", "3", "--set",
+        "dim=4", "--set", "population=20", cwd=tmp_path, env=env,
+    )  # fmt: skip
+    assert done.returncode == 0, done.stderr
+    shown = metaopt_cli("history", "1", "--window", "20", "--spread", "--format", "csv",
+                        cwd=tmp_path, env=env)  # fmt: skip
+    assert shown.returncode == 0, shown.stderr
+    spreads = [float(row["spread"]) for row in csv.DictReader(io.StringIO(shown.stdout))]
+    assert len(spreads) == 20
+    assert 0.2 < spreads[0] < 0.4  # uniform in the box
+    assert spreads[-1] < spreads[0] / 20  # the step has shrunk by more than twentyfold
+    table = metaopt_cli("history", "1", "--window", "100", "--spread", cwd=tmp_path, env=env)
+    assert "spread" in table.stdout
+    plain = metaopt_cli("history", "1", "--window", "100", "--format", "csv", cwd=tmp_path,
+                        env=env)  # fmt: skip
+    assert "spread" not in plain.stdout  # only when asked for

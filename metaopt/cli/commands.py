@@ -477,10 +477,16 @@ def show_command(run_id: str, recent: int, fmt: str, db_path: str) -> None:
     help="A metric to show per window, its median (a 0/1 metric's share); repeat for more "
     "[the run's 0/1 metrics, e.g. nao-walk's falls].",
 )
+@click.option(
+    "--spread",
+    is_flag=True,
+    help="Also show how far apart each window's candidates are: the median over the variables "
+    "of their standard deviation, as a share of the variable's range (CMA-ES's step shrinks it).",
+)
 @format_option
 @db_option
 def history_command(
-    run_id: str, window: int, metrics: tuple[str, ...], fmt: str, db_path: str
+    run_id: str, window: int, metrics: tuple[str, ...], spread: bool, fmt: str, db_path: str
 ) -> None:
     """Show a run's course, window by window: median fitness and quartiles, the best so far,
     and metrics' medians or shares; whether a noisy search still climbed when it stopped."""
@@ -488,7 +494,10 @@ def history_command(
     with RunStore(db_path) as store:
         record = store.run(run_id)
         maximize = record.sense == "maximize"
-        history = run_history(store.evaluations(record.id), window, maximize, metrics or None)
+        widths = [v["upper"] - v["lower"] for v in record.space] if spread else None
+        history = run_history(
+            store.evaluations(record.id), window, maximize, metrics or None, widths
+        )
     if fmt == "table":
         console.print(display.history_table(record, history))
     else:

@@ -392,8 +392,8 @@ def _recent_rows(table: Table, recent: RecentFigures) -> None:
 
 def history_table(run: RunRecord, history: RunHistory) -> Table:
     """`metaopt history RUN`: a row per window of evaluations: failures (and screened ones,
-    where the run screened), fitness median and quartiles, the best so far, and each shown
-    metric's median or share (a share in %)."""
+    where the run screened), fitness median and quartiles, the best so far, each shown
+    metric's median or share (a share in %) and, asked for, the candidates' spread."""
     better = "higher" if run.sense == "maximize" else "lower"
     table = Table(
         title=f"run {run.id}: {history.window} evaluations a row ({better} fitness is better)",
@@ -408,6 +408,8 @@ def history_table(run: RunRecord, history: RunHistory) -> Table:
         table.add_column(header, justify="right")
     for name in history.metrics:
         table.add_column(f"{name} ({history.kind(name)})", justify="right", overflow="fold")
+    if history.spread:
+        table.add_column("spread", justify="right")
     for window in history.windows:
         quartiles = window.fitness_quartiles
         cells = [
@@ -428,6 +430,8 @@ def history_table(run: RunRecord, history: RunHistory) -> Table:
                 cells.append(f"{value:.0%}")
             else:
                 cells.append(format_number(value))
+        if history.spread:
+            cells.append("-" if window.spread is None else f"{window.spread:.4f}")
         table.add_row(*cells)
     return table
 
@@ -451,6 +455,8 @@ def history_records(history: RunHistory) -> list[dict[str, Any]]:
         }
         for name in history.metrics:
             record[f"{name}_{history.kind(name)}"] = window.metrics[name]
+        if history.spread:
+            record["spread"] = window.spread
         records.append(record)
     return records
 

@@ -1,14 +1,17 @@
 """A run's course, window by window: for each window of consecutive evaluations its median
 fitness and quartiles, the best fitness so far, and chosen metrics' medians (a 0/1 metric's
-share, e.g. of falls). The best-so-far curve of a noisy run rises on lucky scores alone; the
-windows' medians show whether the search as a whole still climbed when it stopped, and what
-it traded on the way (`metaopt history`)."""
+share, e.g. of falls) and, where asked, how far apart its candidates are. The best-so-far curve
+of a noisy run rises on lucky scores alone; the windows' medians show whether the search as a
+whole still climbed when it stopped, what it traded on the way, and the spread whether it still
+stepped far enough to climb (`metaopt history`)."""
 
 from __future__ import annotations
 
 import math
 from collections.abc import Iterable, Sequence
 from dataclasses import dataclass
+
+import numpy as np
 
 from metaopt.errors import ConfigError
 from metaopt.reporting.convergence import convergence
@@ -21,7 +24,8 @@ class HistoryWindow:
     """One window of a run's evaluations: index range, how many succeeded, their fitness
     quartiles (None: none succeeded), the best fitness of every evaluation up to the window's
     last (None: none yet), and each shown metric's median or share (None: none reported it),
-    over its completed evaluations; screened ones (metaopt run --screen) are counted apart."""
+    over its completed evaluations; screened ones (metaopt run --screen) are counted apart.
+    ``spread`` (asked for: candidate_spread) is over every candidate the window asked for."""
 
     first: int
     last: int
@@ -31,6 +35,7 @@ class HistoryWindow:
     best_so_far: float | None
     metrics: dict[str, float | None]
     screened: int = 0
+    spread: float | None = None
 
 
 @dataclass(frozen=True)
@@ -41,10 +46,23 @@ class RunHistory:
     metrics: tuple[str, ...]
     shares: frozenset[str]
     windows: tuple[HistoryWindow, ...]
+    spread: bool = False
 
     def kind(self, name: str) -> str:
         """How a shown metric is summarised per window: "share" (a 0/1 metric) or "median"."""
         return "share" if name in self.shares else "median"
+
+
+def candidate_spread(records: Sequence[EvaluationRecord], widths: Sequence[float]) -> float | None:
+    """How far apart the records' candidates are: the median over the variables of their
+    standard deviation, each as a share of the variable's range (a candidate evaluated several
+    times counts once); None for fewer than two candidates. CMA-ES's step shrinks it; a climb
+    that levels off as it nears 0 stopped stepping, not necessarily climbing."""
+    distinct = {record.candidate: record.x for record in records}
+    if len(distinct) < 2:
+        return None
+    points = np.array(list(distinct.values()), dtype=float)
+    return float(np.median(points.std(axis=0, ddof=1) / np.asarray(widths, dtype=float)))
 
 
 def run_history(
@@ -52,10 +70,12 @@ def run_history(
     window: int,
     maximize: bool,
     metrics: Sequence[str] | None = None,
+    widths: Sequence[float] | None = None,
 ) -> RunHistory:
     """The run's evaluations (in index order) in consecutive windows of ``window`` (the last may
     be shorter). ``metrics`` names the metrics to show; None shows the run's 0/1 metrics (a
     metric is a share when it is 0 or 1 in every evaluation of the run that reports it).
+    ``widths``, the variables' ranges, adds each window's candidate_spread.
     ConfigError for a name the run's evaluations never report, with the names they do."""
     if window < 1:
         raise ConfigError(f"a history window must hold at least 1 evaluation; got {window}")
@@ -97,6 +117,9 @@ def run_history(
                 best_so_far=None if math.isnan(best_so_far) else best_so_far,
                 metrics=figures,
                 screened=len(chunk) - len(whole),
+                spread=None if widths is None else candidate_spread(chunk, widths),
             )
         )
-    return RunHistory(window, shown, shares & frozenset(shown), tuple(windows))
+    return RunHistory(
+        window, shown, shares & frozenset(shown), tuple(windows), spread=widths is not None
+    )
