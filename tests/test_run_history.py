@@ -12,6 +12,7 @@ import pytest
 
 from metaopt.errors import ConfigError
 from metaopt.reporting.history import candidate_spread, run_history
+from metaopt.space import Space
 from tests.conftest import evaluation_record, metaopt_cli
 
 RUN = [
@@ -88,10 +89,10 @@ def test_the_spread_is_the_median_over_the_variables_of_the_candidates_sd_per_ra
         replace(evaluation_record(i, 1.0), candidate=c, x=np.array(points[c]))
         for i, c in enumerate((0, 1, 2, 2))
     ]
-    widths = [10.0, 1.0, 2.0]
-    assert candidate_spread(records, widths) == pytest.approx(np.std([0.1, 0.1, 0.4], ddof=1))
-    assert candidate_spread(records[2:], widths) is None  # one candidate: no spread
-    history = run_history(records, window=3, maximize=True, widths=widths)
+    space = Space.from_bounds([0.0, 0.0, 0.0], [10.0, 1.0, 2.0])
+    assert candidate_spread(records, space) == pytest.approx(np.std([0.1, 0.1, 0.4], ddof=1))
+    assert candidate_spread(records[2:], space) is None  # one candidate: no spread
+    history = run_history(records, window=3, maximize=True, space=space)
     assert [w.spread for w in history.windows] == [pytest.approx(np.sqrt(0.03)), None]
     assert run_history(records, window=3, maximize=True).windows[0].spread is None
 

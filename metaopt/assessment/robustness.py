@@ -245,17 +245,17 @@ class Goal:
 
     def margin(self, row: CellResult) -> float:
         """margin_in the row's figures (medians; a rate's value)."""
-        names = [self.metric] if self.only_when is None else [self.metric, self.only_when]
-        return self.margin_in({name: row.summary(name)[0] for name in names}, row.failed)
+        names = (self.metric, self.only_when)
+        return self.margin_in({n: row.summary(n)[0] for n in names if n is not None}, row.failed)
 
     def margin_in(self, figures: Mapping[str, float], failed: int = 0) -> float:
         """How far inside the bound one engine's figure is, relative to the threshold
         (absolute for a threshold of 0): negative outside it, -inf where an evaluation failed
         or nothing measured it, +inf where the metric comes with an event that never happened
         (a time to fall of a gait that never fell)."""
-        value = figures.get(self.metric, math.nan)
         if failed:
             return -math.inf
+        value = figures.get(self.metric, math.nan)
         if math.isnan(value):
             no_event = self.only_when is not None and figures.get(self.only_when) == 0
             return math.inf if no_event else -math.inf

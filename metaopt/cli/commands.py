@@ -52,6 +52,7 @@ from metaopt.run_loop import (
     run,
 )
 from metaopt.settings import parse_problem_settings, split_settings
+from metaopt.space import Space
 from metaopt.storage.experiment_store import experiment_names
 from metaopt.storage.export import FORMATS, export_run
 from metaopt.storage.run_store import RunStore
@@ -494,9 +495,9 @@ def history_command(
     with RunStore(db_path) as store:
         record = store.run(run_id)
         maximize = record.sense == "maximize"
-        widths = [v["upper"] - v["lower"] for v in record.space] if spread else None
+        space = Space.from_json(record.space) if spread else None
         history = run_history(
-            store.evaluations(record.id), window, maximize, metrics or None, widths
+            store.evaluations(record.id), window, maximize, metrics or None, space
         )
     if fmt == "table":
         console.print(display.history_table(record, history))

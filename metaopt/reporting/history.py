@@ -16,6 +16,7 @@ import numpy as np
 from metaopt.errors import ConfigError
 from metaopt.reporting.convergence import convergence
 from metaopt.reporting.recent import completed, fitness_quartiles, is_flag, metric_value
+from metaopt.space import Space
 from metaopt.storage.run_store import EvaluationRecord
 
 
@@ -53,7 +54,7 @@ class RunHistory:
         return "share" if name in self.shares else "median"
 
 
-def candidate_spread(records: Sequence[EvaluationRecord], widths: Sequence[float]) -> float | None:
+def candidate_spread(records: Sequence[EvaluationRecord], space: Space) -> float | None:
     """How far apart the records' candidates are: the median over the variables of their
     standard deviation, each as a share of the variable's range (a candidate evaluated several
     times counts once); None for fewer than two candidates. CMA-ES's step shrinks it; a climb
@@ -62,7 +63,7 @@ def candidate_spread(records: Sequence[EvaluationRecord], widths: Sequence[float
     if len(distinct) < 2:
         return None
     points = np.array(list(distinct.values()), dtype=float)
-    return float(np.median(points.std(axis=0, ddof=1) / np.asarray(widths, dtype=float)))
+    return float(np.median(points.std(axis=0, ddof=1) / space.width))
 
 
 def run_history(
@@ -70,12 +71,12 @@ def run_history(
     window: int,
     maximize: bool,
     metrics: Sequence[str] | None = None,
-    widths: Sequence[float] | None = None,
+    space: Space | None = None,
 ) -> RunHistory:
     """The run's evaluations (in index order) in consecutive windows of ``window`` (the last may
     be shorter). ``metrics`` names the metrics to show; None shows the run's 0/1 metrics (a
     metric is a share when it is 0 or 1 in every evaluation of the run that reports it).
-    ``widths``, the variables' ranges, adds each window's candidate_spread.
+    ``space``, the run's, adds each window's candidate_spread.
     ConfigError for a name the run's evaluations never report, with the names they do."""
     if window < 1:
         raise ConfigError(f"a history window must hold at least 1 evaluation; got {window}")
@@ -117,9 +118,9 @@ def run_history(
                 best_so_far=None if math.isnan(best_so_far) else best_so_far,
                 metrics=figures,
                 screened=len(chunk) - len(whole),
-                spread=None if widths is None else candidate_spread(chunk, widths),
+                spread=None if space is None else candidate_spread(chunk, space),
             )
         )
     return RunHistory(
-        window, shown, shares & frozenset(shown), tuple(windows), spread=widths is not None
+        window, shown, shares & frozenset(shown), tuple(windows), spread=space is not None
     )
