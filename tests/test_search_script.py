@@ -56,6 +56,8 @@ def refusal(tmp_path: Path, path: str, knob: str, value: str, **knobs: str) -> s
         ("FLAT_BEST", "-1", "a fitness in metres, 0 or more"),
         ("FLAT_FELL", "90%", "a share of candidates from 0 to 1"),
         ("FLAT_FELL", "1.5", "a share of candidates from 0 to 1"),
+        ("TRIALS", "two", "a whole number, 1 or more"),
+        ("TRIAL_TIME", "5m", "a whole number, 1 or more"),
         ("FINALS", "8,9", "whole numbers 1 or more separated by spaces"),
         ("FINALS", "", "whole numbers 1 or more separated by spaces"),
         ("FINALS", "0", "whole numbers 1 or more separated by spaces"),
@@ -259,6 +261,77 @@ def test_the_flat_check_also_reads_the_share_of_the_last_candidates_that_fell(tm
     shown = show(empty)
     assert shown["best"] is None and shown["recent"] is None  # no evaluation, as meant
     assert verdict(empty, 1.0, "") == verdict(empty, 1.0, 0.9) == "yes"
+
+
+TRIAL_KNOBS = {"STAGE1B_START": "pool", "DEADLINE": "1800", "PIPELINES": "1"}
+
+
+@pytest.mark.parametrize(
+    ("value", "knobs", "says"),
+    [
+        ("2", {"STAGE1B_START": "raced", "PIPELINES": "1"}, "TRIALS needs STAGE1B_START=pool"),
+        ("2", {**TRIAL_KNOBS, "PIPELINES": "2"}, "DEADLINE and PIPELINES=1"),
+        ("2", {"STAGE1B_START": "pool", "PIPELINES": "1"}, "DEADLINE and PIPELINES=1"),
+        ("2", TRIAL_KNOBS, "TRIALS needs TRIAL_TIME"),
+        ("2", {**TRIAL_KNOBS, "TRIAL_TIME": "300", "FLAT_BEST": "1"}, "no FLAT_BEST"),
+    ],
+)
+def test_trials_need_one_pooled_pipeline_under_a_deadline_and_their_time(
+    tmp_path, value, knobs, says
+):
+    """TRIALS share one pipeline's time before a deadline: anything else is refused."""
+    assert says in refusal(tmp_path, "/usr/bin:/bin", "TRIALS", value, **knobs)
+
+
+def test_a_trial_time_needs_trials(tmp_path):
+    line = refusal(tmp_path, "/usr/bin:/bin", "TRIAL_TIME", "300", **TRIAL_KNOBS)
+    assert "TRIAL_TIME needs TRIALS" in line
+
+
+def trial_functions() -> str:
+    """The script's trial_window, slowest_speed() and fastest_trial(), as bash source."""
+    text = SCRIPT.read_text()
+    return re.search(r"^trial_window=.*?^fastest_trial\(\) \{.*?^\}$", text, re.S | re.M).group(0)
+
+
+def test_the_continued_trial_is_the_one_fastest_on_its_slowest_engine(tmp_path):
+    """fastest_trial() reads each run's last candidates from the store (`metaopt show
+    --recent`) and names the run whose median speed on its slowest engine is highest; a run
+    without a per-engine speed (no evaluation, or one engine) ranks last; a store it cannot
+    read stops the search."""
+    metaopt = shutil.which("metaopt")
+    if metaopt is None:
+        pytest.skip("the metaopt command is not installed")
+    db = tmp_path / "trials.db"
+    walk = ["-p", "nao-walk", "--set", "backend=mujoco+ode", "--set", "duration=2.5",
+            "--set", "lock=1", "--db", str(db)]  # fmt: skip
+    for seed in (3, 4):
+        run = [metaopt, "run", "-o", "random", "--budget", "4", "--seed", str(seed), *walk]
+        subprocess.run(run, check=True, capture_output=True, timeout=300)
+    subprocess.run([metaopt, "run", "-o", "random", "--budget", "4", "--max-time", "0.000001",
+                    *walk], capture_output=True, timeout=120)  # fmt: skip  # run 3: none
+
+    def slowest(run: int) -> float:
+        shown = subprocess.run(
+            [metaopt, "show", str(run), "--recent", "300", "--db", str(db), "--format", "json"],
+            check=True, capture_output=True, text=True, timeout=60).stdout  # fmt: skip
+        metrics = json.loads(shown)["recent"]["metrics"]
+        return min(metrics[f"speed@{engine}"]["median"] for engine in ("mujoco", "ode"))
+
+    speeds = {run: slowest(run) for run in (1, 2)}
+    assert speeds[1] != speeds[2]  # the choice below is not a tie's
+    fastest = max(speeds, key=speeds.get)
+
+    def chosen(store: Path, *runs: int) -> subprocess.CompletedProcess:
+        script = f"set -euo pipefail\ndb={store}\n{trial_functions()}\n"
+        script += f'chosen=$(fastest_trial {" ".join(map(str, runs))})\necho "$chosen"\n'
+        return subprocess.run(["bash", "-c", script], capture_output=True, text=True, timeout=120)
+
+    assert chosen(db, 1, 2).stdout == chosen(db, 2, 1).stdout == f"{fastest}\n"
+    assert chosen(db, 3, 1).stdout == "1\n"  # no evaluation: -inf, never the choice
+    assert chosen(db, 3).stdout == "3\n"  # alone, still the choice
+    unread = chosen(tmp_path / "missing.db", 1, 2)
+    assert unread.returncode != 0 and unread.stdout == ""
 
 
 @pytest.mark.parametrize(

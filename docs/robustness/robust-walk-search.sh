@@ -69,6 +69,15 @@
 # Design Y is design X with STAGE1_RUNS=4 STAGE1_TIME=280 (stage 1b gets the 210 s of three
 # stage-1 runs), on fresh seeds 126-128 (PyBullet's and ODE's speed missed as their median; seed
 # 126 within the goal).
+# TRIALS=N TRIAL_TIME=SECONDS (with STAGE1B_START=pool, PIPELINES=1 and DEADLINE) starts N trial
+# stages 1b, one from each of the pool's N best basins (run seeds 10 SEED + 1 ... + N), each for
+# at most TRIAL_TIME s, then continues the one whose last 300 candidates walk fastest on their
+# slowest engine (metaopt show --recent 300: each engine's median speed; the slowest of them)
+# to the deadline (metaopt resume --max-time); the re-check takes that run. Two basins of one seed
+# climb to levels apart by 0.08-0.16 m/s on PyBullet after 1 500 candidates (measurement M4 in
+# docs/robustness/searches.md), and the basin race's nominal speed does not tell which.
+# Design Z is design Y without FLAT_BEST (it cannot act with PIPELINES=1 under DEADLINE) with
+# TRIALS=2 TRIAL_TIME=360, on fresh seeds 129-131.
 # RECHECK_LAST=N re-checks each final stage 1b's TOP best among its N latest candidates
 # (metaopt robustness --last N) rather than among all: where stage 1b's scores tie at the cap,
 # its TOP best are otherwise the earliest of the tied. Design W is design V with
@@ -205,7 +214,7 @@
 # script at commit 5ed7043, the seventh at 3c42de4, the sixth at 6e1fe34, the fifth at
 # 3c8db53, the fourth at ff6956d, the third at abce00d, the second at 9d03e62.
 set -euo pipefail
-seed=${1:?usage: [DEADLINE=SECONDS LATER_STAGES=SECONDS|auto STAGE1_TIME=SECONDS STAGE1_OPTIMIZER=NAME STAGE1_BATCH=B BASIN_FELL=RATE RACE_FELL=RATE RACE_SEEDS=N STAGE1B_BUDGET=N STAGE1B_OPTIMIZER=NAME STAGE1B_BATCH=B STAGE1B_SCREEN=1 PIPELINES=N STAGE1_RUNS=R STAGE1B_RESAMPLE=K STAGE1B_COMMON=run|batch TOP=K RECHECK_LAST=N STAGE1_ENGINE=E STAGE1_SET="NAME=VALUE ..." STAGE1B_START=all|raced|pool STAGE1B_SET="NAME=VALUE ..." STAGE1B_CELLS="NAME,..." STAGE1B_DURATIONS="NAME=SECONDS,..." FLAT_BEST=METRES FLAT_FELL=SHARE FINALS="RUN ..."] robust-walk-search.sh SEED}
+seed=${1:?usage: [DEADLINE=SECONDS LATER_STAGES=SECONDS|auto STAGE1_TIME=SECONDS STAGE1_OPTIMIZER=NAME STAGE1_BATCH=B BASIN_FELL=RATE RACE_FELL=RATE RACE_SEEDS=N STAGE1B_BUDGET=N STAGE1B_OPTIMIZER=NAME STAGE1B_BATCH=B STAGE1B_SCREEN=1 PIPELINES=N STAGE1_RUNS=R STAGE1B_RESAMPLE=K STAGE1B_COMMON=run|batch TOP=K RECHECK_LAST=N STAGE1_ENGINE=E STAGE1_SET="NAME=VALUE ..." STAGE1B_START=all|raced|pool STAGE1B_SET="NAME=VALUE ..." STAGE1B_CELLS="NAME,..." STAGE1B_DURATIONS="NAME=SECONDS,..." FLAT_BEST=METRES FLAT_FELL=SHARE TRIALS=N TRIAL_TIME=SECONDS FINALS="RUN ..."] robust-walk-search.sh SEED}
 stage1b_budget=${STAGE1B_BUDGET:-600}
 stage1b_optimizer=${STAGE1B_OPTIMIZER:-hs}
 stage1b_batch=${STAGE1B_BATCH:-2}
@@ -213,7 +222,8 @@ pipelines=${PIPELINES:-3}
 stage1_runs=${STAGE1_RUNS:-4}
 stage1_optimizer=${STAGE1_OPTIMIZER:-hs}
 stage1_batch=${STAGE1_BATCH:-2}
-for knob in PIPELINES STAGE1_RUNS DEADLINE LATER_STAGES STAGE1_TIME RACE_SEEDS RECHECK_LAST; do
+for knob in PIPELINES STAGE1_RUNS DEADLINE LATER_STAGES STAGE1_TIME RACE_SEEDS RECHECK_LAST \
+    TRIALS TRIAL_TIME; do
     if [ "$knob" = LATER_STAGES ] && [ "${LATER_STAGES:-}" = auto ]; then continue; fi
     if ! [[ ${!knob:-1} =~ ^[1-9][0-9]*$ ]]; then
         or_auto=""
@@ -296,6 +306,23 @@ if [ -n "${STAGE1_TIME:-}" ] && [ -n "${DEADLINE:-}" ] \
     if [ "${LATER_STAGES:-}" = auto ]; then kept=""; fi
     echo "STAGE1_TIME must leave stage 1b time before DEADLINE$kept:" \
         "at most $((DEADLINE - later_stages - 1)); got '$STAGE1_TIME'" >&2
+    exit 2
+fi
+if [ -n "${TRIALS:-}" ]; then
+    if [ "$stage1b_start" != pool ] || [ -z "${DEADLINE:-}" ] || [ "$pipelines" != 1 ]; then
+        echo "TRIALS needs STAGE1B_START=pool, DEADLINE and PIPELINES=1 (the trials share one" \
+            "pipeline's time from the pool's best basins); got STAGE1B_START=$stage1b_start" \
+            "DEADLINE=${DEADLINE:-} PIPELINES=$pipelines" >&2
+        exit 2
+    fi
+    if [ -z "${TRIAL_TIME:-}" ] || [ -n "${FLAT_BEST:-}" ]; then
+        echo "TRIALS needs TRIAL_TIME (each trial's seconds), and no FLAT_BEST (a flat trial is" \
+            "simply not continued), e.g. TRIALS=2 TRIAL_TIME=360" >&2
+        exit 2
+    fi
+elif [ -n "${TRIAL_TIME:-}" ]; then
+    echo "TRIAL_TIME needs TRIALS (it is each trial stage 1b's time), e.g. TRIALS=2" \
+        "TRIAL_TIME=360" >&2
     exit 2
 fi
 least_retry=60  # seconds: FLAT_BEST starts a pipeline again only with this much time to give it
@@ -393,10 +420,28 @@ flat = best is None or best["fitness"] < float(sys.argv[1])
 flat = flat or (sys.argv[2] != "" and fell is not None and fell >= float(sys.argv[2]))
 print("yes" if flat else "no")' "$FLAT_BEST" "${FLAT_FELL:-}"
 }
+trial_window=300  # candidates: a trial's last ones, where its climb stands
+slowest_speed() {  # run $1's last trial_window candidates: the median speed on the engine
+    # where it is slowest (metaopt show --recent: each speed@ENGINE's median), -inf if none
+    metaopt show "$1" --recent "$trial_window" --db "$db" --format json | python3 -c 'import json, sys
+recent = json.load(sys.stdin)["recent"] or {"metrics": {}}  # None: no evaluation
+speeds = [m["median"] for name, m in recent["metrics"].items()
+          if name.startswith("speed@") and m.get("median") is not None]
+print(repr(min(speeds)) if speeds else "-inf")'
+}
+fastest_trial() {  # the run among $@ whose slowest_speed is highest (the first of ties)
+    for trial in "$@"; do
+        speed=$(slowest_speed "$trial") || exit 1  # an unread store stops the search
+        echo "trial stage 1b (run $trial): its last $trial_window candidates walk $speed m/s" \
+            "on their slowest engine" >&2
+        echo "$speed $trial"
+    done | sort -g -r -s -k 1,1 | head -n 1 | cut -d " " -f 2
+}
 if [ -n "${FINALS:-}" ]; then
     read -r -a finals <<< "$FINALS"
 else
     spare=$pipelines  # the pool's basins handed out so far
+    pipelines_left=$pipelines
     pool_size=0
     if [ "$stage1b_start" = pool ]; then
         pool=()
@@ -415,7 +460,23 @@ else
                 "$later_stages s kept for the later stages" >&2
         fi
     fi
-    for p in $(seq 1 "$pipelines"); do
+    if [ -n "${TRIALS:-}" ]; then  # one pipeline: trials from the pool's best basins, then the best
+        trials=()
+        for k in $(seq 1 $((TRIALS < pool_size ? TRIALS : pool_size))); do
+            share=$(time_share 1)
+            metaopt run "${stage1b_run[@]}" --seed $((10 * seed + k)) \
+                --start-from "$(first "$basins" "$k" | tail -n 1)" \
+                --max-time $((TRIAL_TIME < share ? TRIAL_TIME : share)) --db "$db"
+            run=$((run + 1))
+            trials+=("$run")
+        done
+        chosen=$(fastest_trial "${trials[@]}")  # on its own line: an unread store stops the search
+        echo "continuing trial stage 1b (run $chosen) to the deadline" >&2
+        metaopt resume "$chosen" --max-time "$(time_share 1)" --workers 2 --db "$db"
+        finals+=("$chosen")
+        pipelines_left=0  # the trials were the pipeline
+    fi
+    for p in $(seq 1 "$pipelines_left"); do
         case $stage1b_start in
             pool) starts=(--start-from "$(first "$basins" "$p" | tail -n 1)") ;;
             raced)
