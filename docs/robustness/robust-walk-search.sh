@@ -77,7 +77,7 @@
 # climb to levels apart by 0.08-0.16 m/s on PyBullet after 1 500 candidates (measurement M4 in
 # docs/robustness/searches.md), and the basin race's nominal speed does not tell which.
 # Design Z is design Y without FLAT_BEST (it cannot act with PIPELINES=1 under DEADLINE) with
-# TRIALS=2 TRIAL_TIME=360, on fresh seeds 129-131.
+# TRIALS=2 TRIAL_TIME=300, on fresh seeds 129-131.
 # RECHECK_LAST=N re-checks each final stage 1b's TOP best among its N latest candidates
 # (metaopt robustness --last N) rather than among all: where stage 1b's scores tie at the cap,
 # its TOP best are otherwise the earliest of the tied. Design W is design V with
