@@ -71,8 +71,9 @@
 # 126 within the goal).
 # TRIALS=N TRIAL_TIME=SECONDS (with STAGE1B_START=pool, PIPELINES=1 and DEADLINE) starts N trial
 # stages 1b, one from each of the pool's N best basins (run seeds 10 SEED + 1 ... + N), each for
-# at most TRIAL_TIME s, then continues the one whose last 300 candidates walk fastest on their
-# slowest engine (metaopt show --recent 300: each engine's median speed; the slowest of them)
+# at most TRIAL_TIME s, then continues the one whose last 300 evaluations (candidates, without
+# STAGE1B_RESAMPLE) walk fastest on their slowest engine (metaopt show --recent 300: each
+# engine's median speed; the slowest of them)
 # to the deadline (metaopt resume --max-time); the re-check takes that run. Two basins of one seed
 # climb to levels apart by 0.08-0.16 m/s on PyBullet after 1 500 candidates (measurement M4 in
 # docs/robustness/searches.md), and the basin race's nominal speed does not tell which.
@@ -420,8 +421,8 @@ flat = best is None or best["fitness"] < float(sys.argv[1])
 flat = flat or (sys.argv[2] != "" and fell is not None and fell >= float(sys.argv[2]))
 print("yes" if flat else "no")' "$FLAT_BEST" "${FLAT_FELL:-}"
 }
-trial_window=300  # candidates: a trial's last ones, where its climb stands
-slowest_speed() {  # run $1's last trial_window candidates: the median speed on the engine
+trial_window=300  # evaluations: a trial's last ones, where its climb stands
+slowest_speed() {  # run $1's last trial_window evaluations: the median speed on the engine
     # where it is slowest (metaopt show --recent: each speed@ENGINE's median), -inf if none
     metaopt show "$1" --recent "$trial_window" --db "$db" --format json | python3 -c 'import json, sys
 recent = json.load(sys.stdin)["recent"] or {"metrics": {}}  # None: no evaluation
