@@ -8,6 +8,7 @@ import sqlite3
 import subprocess
 import sys
 import time
+import warnings
 from pathlib import Path
 
 import pytest
@@ -53,6 +54,24 @@ def test_sync_runs_are_identical_on_every_executor(tmp_path):
         result, rows = results[name]
         assert rows == serial_rows, f"{name} differs from the serial run"
         assert result.best_fitness == serial_result.best_fitness
+
+
+def test_two_local_dask_clusters_at_once_each_serve_on_their_own_loopback_port():
+    """Two runs on the dask executor at once (parallel tests, two users' runs): each local
+    cluster's scheduler serves its pages on a free port of 127.0.0.1, not both on 8787 with
+    a "Port 8787 is already in use" warning."""
+    factory = registry().executor("dask").factory
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        first, second = factory(1, None), factory(1, None)
+        try:
+            links = [executor._cluster.dashboard_link for executor in (first, second)]
+        finally:
+            first.shutdown()
+            second.shutdown()
+    assert not [w for w in caught if "already in use" in str(w.message)]
+    assert all(link.startswith("http://127.0.0.1:") for link in links)
+    assert links[0] != links[1]
 
 
 def test_async_mode_keeps_workers_busy_and_spends_the_budget(tmp_path):

@@ -42,7 +42,9 @@ class DaskExecutor(Executor):
                         n_workers=workers,
                         threads_per_worker=1,
                         processes=True,
-                        dashboard_address=None,
+                        # None does not turn the dashboard off (dask/distributed#8136):
+                        # a free loopback port, so two local runs never contend for 8787
+                        dashboard_address="127.0.0.1:0",
                         host="127.0.0.1",
                     )
                 self._client = Client(self._cluster)
