@@ -294,7 +294,7 @@ def trial_functions() -> str:
     return re.search(r"^trial_window=.*?^fastest_trial\(\) \{.*?^\}$", text, re.S | re.M).group(0)
 
 
-def test_the_continued_trial_is_the_one_fastest_on_its_slowest_engine(tmp_path):
+def test_fastest_trial_names_the_run_fastest_on_its_slowest_engine(tmp_path):
     """fastest_trial() reads each run's last candidates from the store (`metaopt show
     --recent`) and names the run whose median speed on its slowest engine is highest; a run
     without a per-engine speed (no evaluation, or one engine) ranks last; a store it cannot

@@ -318,12 +318,12 @@ if [ -n "${TRIALS:-}" ]; then
     fi
     if [ -z "${TRIAL_TIME:-}" ] || [ -n "${FLAT_BEST:-}" ]; then
         echo "TRIALS needs TRIAL_TIME (each trial's seconds), and no FLAT_BEST (a flat trial is" \
-            "simply not continued), e.g. TRIALS=2 TRIAL_TIME=360" >&2
+            "simply not continued), e.g. TRIALS=2 TRIAL_TIME=300" >&2
         exit 2
     fi
 elif [ -n "${TRIAL_TIME:-}" ]; then
     echo "TRIAL_TIME needs TRIALS (it is each trial stage 1b's time), e.g. TRIALS=2" \
-        "TRIAL_TIME=360" >&2
+        "TRIAL_TIME=300" >&2
     exit 2
 fi
 least_retry=60  # seconds: FLAT_BEST starts a pipeline again only with this much time to give it
@@ -404,9 +404,14 @@ time_share() {  # pipeline $1's share of the time left to DEADLINE, seconds (a d
     if [ -z "${DEADLINE:-}" ]; then echo 86400; return; fi
     even_share $((DEADLINE - later_stages)) $((pipelines - $1 + 1))
 }
-stage1b() {  # pipeline $1's stage 1b, run seed $2, from the basin(s) in starts
-    local limit=()
-    if [ -n "${DEADLINE:-}" ]; then limit=(--max-time "$(time_share "$1")"); fi
+stage1b() {  # pipeline $1's stage 1b, run seed $2, from the basin(s) in starts; with $3, for at
+    # most $3 seconds of the pipeline's share (a trial)
+    local limit=() seconds
+    if [ -n "${DEADLINE:-}" ]; then
+        seconds=$(time_share "$1")
+        if [ -n "${3:-}" ] && [ "$3" -lt "$seconds" ]; then seconds=$3; fi
+        limit=(--max-time "$seconds")
+    fi
     metaopt run "${stage1b_run[@]}" --seed "$2" ${starts[@]+"${starts[@]}"} \
         ${limit[@]+"${limit[@]}"} --db "$db"
     run=$((run + 1))
@@ -464,11 +469,8 @@ else
     if [ -n "${TRIALS:-}" ]; then  # one pipeline: trials from the pool's best basins, then the best
         trials=()
         for k in $(seq 1 $((TRIALS < pool_size ? TRIALS : pool_size))); do
-            share=$(time_share 1)
-            metaopt run "${stage1b_run[@]}" --seed $((10 * seed + k)) \
-                --start-from "$(first "$basins" "$k" | tail -n 1)" \
-                --max-time $((TRIAL_TIME < share ? TRIAL_TIME : share)) --db "$db"
-            run=$((run + 1))
+            starts=(--start-from "$(first "$basins" "$k" | tail -n 1)")
+            stage1b 1 $((10 * seed + k)) "$TRIAL_TIME"
             trials+=("$run")
         done
         chosen=$(fastest_trial "${trials[@]}")  # on its own line: an unread store stops the search
