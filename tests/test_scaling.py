@@ -65,13 +65,28 @@ def test_two_local_dask_clusters_at_once_each_serve_on_their_own_loopback_port()
         warnings.simplefilter("always")
         first, second = factory(1, None), factory(1, None)
         try:
-            links = [executor._cluster.dashboard_link for executor in (first, second)]
+            links = [executor.dashboard for executor in (first, second)]
         finally:
             first.shutdown()
             second.shutdown()
     assert not [w for w in caught if "already in use" in str(w.message)]
     assert all(link.startswith("http://127.0.0.1:") for link in links)
     assert links[0] != links[1]
+
+
+def test_a_run_on_a_local_dask_cluster_says_where_its_dashboard_is(tmp_path):
+    """The dashboard's port is a free one, different each run: the run names it on stderr,
+    once, on loopback; a run on worker processes (no dashboard) says nothing of one."""
+    common = ("run", "-o", "hs", "-p", "sphere", "--budget", "8", "--workers", "1")
+    on_dask = metaopt_cli(*common, "--executor", "dask", "--db", "d.db", cwd=tmp_path, env=ALL)
+    assert on_dask.returncode == 0, on_dask.stderr
+    lines = [line for line in on_dask.stderr.splitlines() if "dashboard" in line]
+    assert len(lines) == 1, on_dask.stderr
+    assert lines[0].startswith("The dask executor's dashboard: http://127.0.0.1:")
+    port = lines[0].split("127.0.0.1:")[1].split("/")[0]
+    assert port.isdigit() and port != "8787"
+    on_processes = metaopt_cli(*common, "--executor", "process", "--db", "p.db", cwd=tmp_path)
+    assert on_processes.returncode == 0 and "dashboard" not in on_processes.stderr
 
 
 def test_async_mode_keeps_workers_busy_and_spends_the_budget(tmp_path):

@@ -77,6 +77,8 @@ def build_executor(name: str | None, workers: int | None, scheduler: str | None)
     started = time.perf_counter()
     executor = info.factory(workers or (1 if name == "serial" else cores), scheduler)
     executor.startup_time = time.perf_counter() - started
+    if executor.dashboard:  # a free port each time, so only this line tells where it is
+        errors.print(f"The {name} executor's dashboard: {executor.dashboard}", highlight=False)
     return executor
 
 

@@ -180,6 +180,9 @@ class Executor(ABC):
     #: Seconds it took to start (worker processes, a cluster), set by whoever built it; a run
     #: counts them in its wall time.
     startup_time: float = 0.0
+    #: The address of a page showing the workers as they run, where the executor serves one
+    #: (a local Dask cluster's dashboard); None otherwise.
+    dashboard: str | None = None
 
     @property
     def capacity(self) -> int:

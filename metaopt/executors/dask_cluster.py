@@ -48,6 +48,7 @@ class DaskExecutor(Executor):
                         host="127.0.0.1",
                     )
                 self._client = Client(self._cluster)
+                self.dashboard = self._cluster.dashboard_link
             else:
                 self._client = Client(address, timeout=10)
         except (OSError, TimeoutError) as error:
