@@ -8,13 +8,19 @@ from collections.abc import Iterable
 from dataclasses import dataclass
 from functools import lru_cache
 from types import ModuleType
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import pluggy
 
 from metaopt import hookspecs
 from metaopt.errors import ConfigError
 from metaopt.params import close_matches, suggest
+
+if TYPE_CHECKING:
+    from metaopt.executors.base import ExecutorInfo
+    from metaopt.optimizer import OptimizerInfo
+    from metaopt.physics import BackendInfo
+    from metaopt.problem import ProblemInfo
 
 ENTRY_POINT_GROUP = "metaopt"
 #: Comma-separated entry-point names to load; unset loads all, empty loads none.
@@ -66,19 +72,19 @@ class Registry:
         source = self.sources.get(plugin_name)
         return source.distribution if source else plugin_name
 
-    def optimizer(self, name: str):
+    def optimizer(self, name: str) -> OptimizerInfo:
         """The OptimizerInfo called name, or a ConfigError with close matches."""
         return _lookup(self.optimizers, name, "optimizer")
 
-    def problem(self, name: str):
+    def problem(self, name: str) -> ProblemInfo:
         """The ProblemInfo called name, or a ConfigError with close matches."""
         return _lookup(self.problems, name, "problem")
 
-    def executor(self, name: str):
+    def executor(self, name: str) -> ExecutorInfo:
         """The ExecutorInfo called name, or a ConfigError listing the installed ones."""
         return _lookup(self.executors, name, "executor")
 
-    def physics_backend(self, name: str):
+    def physics_backend(self, name: str) -> BackendInfo:
         """The BackendInfo called name, or a ConfigError listing the installed ones (or saying
         what the engine needs, when it cannot run here)."""
         info = _lookup(self.physics_backends, name, "physics backend")
@@ -112,7 +118,7 @@ class Registry:
         )
 
 
-def _lookup(table: dict[str, Any], name: str, kind: str):
+def _lookup(table: dict[str, Any], name: str, kind: str) -> Any:
     if name in table:
         return table[name]
     installed = ", ".join(table) or "none installed"

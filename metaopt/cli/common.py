@@ -6,7 +6,9 @@ import os
 import re
 import sys
 import time
+from collections.abc import Callable
 from pathlib import Path
+from typing import Any
 
 import click
 from rich.console import Console
@@ -40,7 +42,7 @@ db_option = click.option(
 )
 
 
-def scheduling_options(command):
+def scheduling_options(command: Callable[..., Any]) -> Callable[..., Any]:
     """Options that choose where evaluations run (not stored: results never depend on them
     in sync mode)."""
     options = [
