@@ -8,6 +8,7 @@ import sqlite3
 import subprocess
 import sys
 import time
+import urllib.request
 import warnings
 from pathlib import Path
 
@@ -66,6 +67,10 @@ def test_two_local_dask_clusters_at_once_each_serve_on_their_own_loopback_port()
         first, second = factory(1, None), factory(1, None)
         try:
             links = [executor.dashboard for executor in (first, second)]
+            for link in links:  # each served while its cluster runs
+                health = link.split()[0].replace("/status", "/health")
+                with urllib.request.urlopen(health, timeout=10) as answer:
+                    assert answer.read() == b"ok"
         finally:
             first.shutdown()
             second.shutdown()

@@ -181,7 +181,8 @@ class Executor(ABC):
     #: counts them in its wall time.
     startup_time: float = 0.0
     #: The address of a page showing the workers as they run, where the executor serves one
-    #: (a local Dask cluster's dashboard); None otherwise.
+    #: (a local Dask cluster's dashboard), with what it needs to show them if that is missing;
+    #: None otherwise.
     dashboard: str | None = None
 
     @property

@@ -12,6 +12,7 @@ evaluation (its result is ignored); the worker finishes it anyway.
 from __future__ import annotations
 
 import collections
+import importlib.util
 import math
 import threading
 import time
@@ -49,6 +50,8 @@ class DaskExecutor(Executor):
                     )
                 self._client = Client(self._cluster)
                 self.dashboard = self._cluster.dashboard_link
+                if importlib.util.find_spec("bokeh") is None:  # Dask draws its pages with it
+                    self.dashboard += " (install bokeh>=3.1 to see it; until then a placeholder)"
             else:
                 self._client = Client(address, timeout=10)
         except (OSError, TimeoutError) as error:
