@@ -24,7 +24,7 @@ from metaopt import Evaluation, Problem, ProblemInfo, Space
 from metaopt.params import resolve
 from metaopt.plugins import registry
 from metaopt.reporting.display import RichProgress
-from metaopt.run_loop import RunSpec, run
+from metaopt.running import RunSpec, run
 from metaopt.storage.run_store import EvaluationCounts, RunStore
 
 OPTIMIZERS = ("hs", "ga", "random")

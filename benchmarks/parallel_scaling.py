@@ -23,7 +23,7 @@ import time
 
 from metaopt.executors.base import Executor, SerialExecutor
 from metaopt.plugins import registry
-from metaopt.run_loop import RunSettings, RunSpec, run
+from metaopt.running import RunSettings, RunSpec, run
 from metaopt.storage.run_store import RunStore
 
 

@@ -17,7 +17,7 @@ import time
 from pathlib import Path
 
 from metaopt.plugins import registry
-from metaopt.run_loop import RunSettings, RunSpec, run
+from metaopt.running import RunSettings, RunSpec, run
 from metaopt.storage.run_store import RunStore
 
 POPULATION = 24

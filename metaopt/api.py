@@ -27,7 +27,7 @@ from metaopt.params import resolve
 from metaopt.plugins import registry
 from metaopt.problem import Evaluation, Problem, ProblemInfo, Sense
 from metaopt.reporting.convergence import convergence
-from metaopt.run_loop import RunSettings, RunSpec, run
+from metaopt.running import RunSettings, RunSpec, run
 from metaopt.space import Space, Variable
 from metaopt.storage.run_store import RunStore
 

@@ -13,7 +13,7 @@ import pytest
 from metaopt import ConfigError, Evaluation, Problem, ProblemInfo, Sense, Space
 from metaopt.errors import SettingWarning
 from metaopt.plugins import registry
-from metaopt.run_loop import RunSettings, RunSpec, run
+from metaopt.running import RunSettings, RunSpec, run
 from metaopt.storage.run_store import RunStore
 from tests.conftest import metaopt_cli
 

@@ -29,7 +29,7 @@ from metaopt.executors.base import SerialExecutor
 from metaopt.plugins import registry
 from metaopt.problem import Sense
 from metaopt.reporting.result_table import ResultTable
-from metaopt.run_loop import RunInterrupted, RunSettings
+from metaopt.running import RunInterrupted, RunSettings
 from metaopt.storage.experiment_store import ExperimentStore
 from metaopt.storage.run_store import EvaluationCounts
 from tests.conftest import ROOT, metaopt_cli

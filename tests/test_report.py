@@ -14,7 +14,7 @@ from metaopt.plugins import registry
 from metaopt.reporting.convergence import Band, convergence, group_runs
 from metaopt.reporting.plots import bands_figure, convergence_figure
 from metaopt.reporting.report import comparison_figures, run_figures, write_figures
-from metaopt.run_loop import RunSpec, run
+from metaopt.running import RunSpec, run
 from metaopt.storage.run_store import RunStore
 from metaopt_problems.nao_walk.stored_gaits import gait_vector, load_gait
 from tests.walk_runs import store_walk_run

@@ -9,7 +9,7 @@ import pytest
 from metaopt import ConfigError, Evaluation, Problem, ProblemInfo, Sense, Space
 from metaopt.errors import RunFailed
 from metaopt.plugins import registry
-from metaopt.run_loop import RunSettings, RunSpec, resume, run
+from metaopt.running import RunSettings, RunSpec, resume, run
 from metaopt.storage.run_store import EvaluationCounts, RunStore
 
 

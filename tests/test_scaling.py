@@ -15,7 +15,7 @@ from pathlib import Path
 import pytest
 
 from metaopt.plugins import registry
-from metaopt.run_loop import RunSettings, RunSpec, run
+from metaopt.running import RunSettings, RunSpec, run
 from metaopt.storage.run_store import RunStore
 from tests.conftest import metaopt_cli
 

@@ -11,7 +11,7 @@ from metaopt.cli import main
 from metaopt.plugins import registry
 from metaopt.reporting.convergence import run_convergence
 from metaopt.reporting.report import run_figures
-from metaopt.run_loop import RunSettings, RunSpec, resume, run
+from metaopt.running import RunSettings, RunSpec, resume, run
 from metaopt.storage.run_store import EvaluationCounts, RunStore
 
 POPULATION = 24

@@ -16,7 +16,7 @@ from metaopt.errors import ConfigError
 from metaopt.physics import PhysicsSettings
 from metaopt.plugins import registry
 from metaopt.reporting.video import VIDEO_FPS, film_candidate
-from metaopt.run_loop import RunSpec, run
+from metaopt.running import RunSpec, run
 from metaopt.storage.run_store import RunStore
 from metaopt_problems.nao_walk.robot import nao
 from metaopt_problems.nao_walk.stored_gaits import gait_vector, load_gait

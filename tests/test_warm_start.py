@@ -7,7 +7,7 @@ import pytest
 import metaopt
 from metaopt import ConfigError, Space, Variable
 from metaopt.plugins import registry
-from metaopt.run_loop import RunSettings, RunSpec, resume, run
+from metaopt.running import RunSettings, RunSpec, resume, run
 from metaopt.storage.run_store import RunStore
 from metaopt.warm_start import fitted_start, start_points
 from metaopt_problems.nao_walk.stored_gaits import gait_vector, load_gait

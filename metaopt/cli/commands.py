@@ -39,8 +39,8 @@ from metaopt.plugins import registry
 from metaopt.reporting import display
 from metaopt.reporting.history import run_history
 from metaopt.reporting.recent import DEFAULT_WINDOW, recent_figures
-from metaopt.run_loop import (
-    AGGREGATES,
+from metaopt.resampling import AGGREGATES
+from metaopt.running import (
     COMMON_SEEDS,
     MODES,
     RunInterrupted,

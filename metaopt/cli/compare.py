@@ -34,7 +34,7 @@ from metaopt.errors import ConfigError
 from metaopt.plugins import Registry, registry
 from metaopt.reporting import display
 from metaopt.reporting.result_table import ResultTable
-from metaopt.run_loop import RunInterrupted
+from metaopt.running import RunInterrupted
 from metaopt.storage.experiment_store import ExperimentStore
 from metaopt.storage.export import dump_json
 from metaopt.storage.whole_file import written_whole

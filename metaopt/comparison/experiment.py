@@ -18,7 +18,7 @@ from metaopt.errors import ConfigError, SettingWarning
 from metaopt.params import Param, resolve, suggest
 from metaopt.plugins import Registry
 from metaopt.problem import ProblemInfo
-from metaopt.run_loop import RunSettings, RunSpec, check_run
+from metaopt.running import RunSettings, RunSpec, check_run
 from metaopt.settings import parse_problem_settings
 
 _TOP_KEYS = ("name", "problem", "seeds", "target", "budget", "problem_settings", "optimizers")

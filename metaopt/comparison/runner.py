@@ -14,7 +14,7 @@ from metaopt.comparison.experiment import Cell, Experiment
 from metaopt.errors import ConfigError
 from metaopt.executors.base import EvaluationTask, Executor
 from metaopt.plugins import Registry, registry
-from metaopt.run_loop import Progress, RunSpec, resume, run, stop_on_sigterm
+from metaopt.running import Progress, RunSpec, resume, run, stop_on_sigterm
 from metaopt.storage.experiment_store import ExperimentStore
 from metaopt.storage.run_store import RunRecord
 
@@ -136,7 +136,7 @@ def run_experiment_in_parallel(
 
 def _stop_runs(pool: ProcessPoolExecutor, futures: list[Future]) -> None:
     """Stop the runs under way as Ctrl-C stops one: each stores what it finished and marks
-    itself interrupted (run_loop); the runs not started are cancelled."""
+    itself interrupted (metaopt.running); the runs not started are cancelled."""
     for future in futures:
         future.cancel()
     # no public API lists a pool's worker processes; SIGTERM, not SIGINT, which a process

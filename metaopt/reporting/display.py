@@ -34,7 +34,7 @@ from metaopt.assessment.search_medians import (
 from metaopt.params import Param
 from metaopt.reporting.history import RunHistory
 from metaopt.reporting.recent import RecentFigures
-from metaopt.run_loop import RunResult, common_seeds_mode
+from metaopt.running import RunResult, common_seeds_mode
 from metaopt.storage.run_store import CandidateRecord, EvaluationCounts, RunRecord
 
 PROGRESS_REFRESH = 0.1

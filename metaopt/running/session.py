@@ -1,451 +1,36 @@
-"""The run loop: asks the optimizer, has an executor evaluate, stores every evaluation, tells
-the results, and owns budget, seeds, checkpoints, progress and interruption.
-
-Optimizers and problems never touch processes, files or the terminal; this module does,
-through an Executor, a RunStore and an optional Progress observer.
-
-Modes: ``sync`` asks a fixed batch, evaluates it (on any executor), and tells the results in
-index order, so a run depends only on its seed and settings. ``async`` keeps every worker busy:
-a steady-state optimizer is asked for a new candidate whenever one finishes; faster, but the
-order of results (and so the run) depends on timing.
-"""
+"""One run's loop: asks the optimizer, has an executor evaluate, stores every evaluation, tells
+the results in order, and keeps counters, the best so far and checkpoints (resumable)."""
 
 from __future__ import annotations
 
 import math
-import signal
 import time
 import warnings
-from collections.abc import Iterator
 from concurrent.futures import FIRST_COMPLETED, Future, as_completed, wait
-from contextlib import contextmanager
-from dataclasses import asdict, dataclass, field, replace
-from pathlib import Path
-from typing import Any, Protocol
+from dataclasses import dataclass, replace
+from typing import Any
 
 import numpy as np
 
-from metaopt.errors import ConfigError, RunFailed, SettingWarning
-from metaopt.executors.base import (
-    SCREEN_BOUND,
-    EvaluationTask,
-    Executor,
-    Outcome,
-    SerialExecutor,
-    adopt_problem,
-    problem_key,
-)
-from metaopt.optimizer import Optimizer, OptimizerInfo
-from metaopt.params import resolve
+from metaopt.errors import RunFailed, SettingWarning
+from metaopt.executors.base import SCREEN_BOUND, EvaluationTask, Executor, Outcome, problem_key
+from metaopt.optimizer import Optimizer
 from metaopt.problem import Evaluation, Problem, ProblemInfo, Sense
-from metaopt.resampling import AGGREGATES, aggregate_fitness, aggregate_metrics
+from metaopt.resampling import aggregate_fitness, aggregate_metrics
+from metaopt.running.signals import RunInterrupted, stop_on_sigterm
+from metaopt.running.spec import MAX_TIME_STOP, Progress, RunResult, RunSpec
 from metaopt.seeding import CommonSeeds, EvaluationSeeds
-from metaopt.space import Space
 from metaopt.storage.run_store import EvaluationRecord, RunRecord, RunStore
-from metaopt.versions import environment_versions
-from metaopt.warm_start import check_start, start_points
+from metaopt.warm_start import start_points
 
 CHECKPOINT_INTERVAL = 1.0
 #: A run whose first this many evaluations all failed stops as failed rather than spend its
 #: budget on a problem set up so that nothing can succeed (docs/index.md).
 ALL_FAILED_STOP = 10
-MODES = ("sync", "async")
-#: who shares seeds (common random numbers): nobody, every candidate of the run, or of a batch
-COMMON_SEEDS = ("off", "run", "batch")
-
-
-def common_seeds_mode(stored: bool | str) -> str:
-    """The common-seeds setting as one of COMMON_SEEDS: runs stored before "batch" existed
-    hold True (the run's seeds) or False (off)."""
-    if isinstance(stored, bool):
-        return "run" if stored else "off"
-    return stored
-
-
-class Progress(Protocol):
-    """What the run loop tells an observer (the CLI's progress bar) as a run goes on."""
-
-    def start(self, total: int, done: int) -> None:
-        """The run starts (or resumes) with ``done`` of ``total`` evaluations behind it."""
-
-    def update(self, done: int, best: float | None) -> None:
-        """``done`` evaluations are finished; ``best`` is the best fitness so far."""
-
-
-#: how the message of a run that stopped at its max time begins (it can be resumed for more)
-MAX_TIME_STOP = "stopped at its max time"
 
 
 @dataclass
-class RunSettings:
-    """How evaluations are scheduled; stored with the run so a resume continues alike."""
-
-    mode: str = "sync"
-    #: sync mode: candidates asked per batch (0 = the optimizer's preferred batch size).
-    batch: int = 0
-    #: evaluations per candidate, each with its own seed; the fitness is aggregated.
-    resample: int = 1
-    aggregate: str = "mean"
-    #: seconds an evaluation may take before it is stopped and stored as failed (None = no limit)
-    time_limit: float | None = None
-    #: common random numbers (docs/scaling.md): "run" gives every candidate the same resample
-    #: seeds, "batch" every candidate of a sync batch (fresh seeds per batch), "off" (the
-    #: default) each evaluation a seed of its own. Runs stored as True/False read as run/off.
-    common_seeds: str = "off"
-    #: stop once a fitness this good is found: at or below it (minimize), at or above (maximize)
-    target: float | None = None
-    #: seconds of wall time (from this start or resume, the workers' start-up included) after
-    #: which no more candidates are asked: the batch in flight finishes and the run ends
-    #: finished, its budget unspent (None = no limit). In sync mode the evaluations done are
-    #: the first ones of the same run (seed, budget) given more time.
-    max_time: float | None = None
-    #: warm start (metaopt.warm_start): the run's first start_points candidates are these
-    #: points and points drawn within ±start_spread of each range around them in turn, in
-    #: place of the optimizer's first asks (0 points = the optimizer's initial population);
-    #: None = none. One point may be given flat (as runs stored before several could be).
-    start: list[list[float]] | None = None
-    start_spread: float = 0.05
-    start_points: int = 0
-    #: where the start points came from (stored candidates' names, runs), for people
-    start_from: str | None = None
-    #: screen every candidate first (Problem.screen, a cheap optimistic bound) and complete
-    #: only those that can still enter the ranks the optimizer's update reads
-    #: (Optimizer.selected); the others are told their bound and stored as 'screened'
-    screen: bool = False
-
-    def __post_init__(self) -> None:
-        self.common_seeds = common_seeds_mode(self.common_seeds)
-        if self.start is not None and all(isinstance(v, int | float) for v in self.start):
-            self.start = [list(self.start)]
-
-    def batch_size(self, optimizer: Optimizer) -> int:
-        """Candidates asked per sync batch: the given batch, or the optimizer's own."""
-        return self.batch or optimizer.batch_size
-
-    def check(self, budget: int) -> None:
-        """ConfigError naming the bad setting."""
-        if self.mode not in MODES:
-            raise ConfigError(f"unknown mode {self.mode!r}; accepted: {', '.join(MODES)}")
-        if self.aggregate not in AGGREGATES:
-            raise ConfigError(f"unknown aggregate {self.aggregate!r}; accepted: mean, median")
-        if self.batch < 0:
-            raise ConfigError(f"batch must be 0 (the optimizer's own) or more, got {self.batch}")
-        if self.resample < 1:
-            raise ConfigError(f"resample must be at least 1, got {self.resample}")
-        if self.common_seeds not in COMMON_SEEDS:
-            raise ConfigError(
-                f"unknown common seeds {self.common_seeds!r}; accepted: {', '.join(COMMON_SEEDS)}"
-            )
-        if self.common_seeds == "batch" and self.mode != "sync":
-            raise ConfigError(
-                "common seeds per batch are shared by the candidates of a sync batch: "
-                "run in sync mode (no --mode async), or use --common-seeds run"
-            )
-        if budget < self.resample:
-            raise ConfigError(
-                f"budget {budget} is smaller than resample {self.resample}: "
-                "not one candidate could be evaluated"
-            )
-        if self.time_limit is not None and not self.time_limit > 0:
-            raise ConfigError(f"time limit must be positive seconds, got {self.time_limit}")
-        if self.target is not None and not math.isfinite(self.target):
-            raise ConfigError(f"target must be a finite fitness, got {self.target}")
-        if self.max_time is not None and not 0 < self.max_time < math.inf:
-            raise ConfigError(f"max time must be positive, finite seconds, got {self.max_time}")
-        if not 0.0 <= self.start_spread <= 1.0:
-            raise ConfigError(
-                f"start spread must be a share of each range in [0, 1], got {self.start_spread}"
-            )
-        if self.screen and (self.mode != "sync" or self.resample != 1):
-            raise ConfigError(
-                "screening ranks a whole batch at once: it runs in sync mode with one "
-                "evaluation per candidate (no --resample, no --mode async)"
-            )
-        if self.start_points < 0:
-            raise ConfigError(
-                f"start points must be 0 (the optimizer's initial population) or more, "
-                f"got {self.start_points}"
-            )
-
-
-@dataclass
-class RunSpec:
-    """Everything that defines a run: plugins, their parameters, budget, seed and scheduling."""
-
-    optimizer: str
-    problem: str
-    budget: int
-    seed: int
-    optimizer_params: dict[str, Any] = field(default_factory=dict)
-    problem_params: dict[str, Any] = field(default_factory=dict)
-    settings: RunSettings = field(default_factory=RunSettings)
-
-
-@dataclass
-class RunResult:
-    """What a finished (or interrupted) run reports. With resampling, fitness and metrics are
-    the best candidate's aggregates."""
-
-    run_id: int
-    status: str
-    evaluations: int
-    failed: int
-    #: evaluations of which only the screen ran (``RunSettings.screen``), told their bound
-    screened: int
-    best_fitness: float | None
-    best_x: np.ndarray | None
-    best_metrics: dict[str, float]
-    wall_time: float
-    names: tuple[str, ...]
-    key_metrics: tuple[str, ...]
-
-
-class RunInterrupted(KeyboardInterrupt):
-    """Ctrl-C or SIGTERM stopped a run; everything finished is stored."""
-
-    def __init__(self, run_id: int, stored: int) -> None:
-        super().__init__(f"run {run_id} interrupted with {stored} evaluations stored")
-        self.run_id = run_id
-        self.stored = stored
-
-    def __reduce__(self) -> tuple[type, tuple[int, int]]:
-        # picklable as raised in a worker process (compare --jobs) and re-raised in the parent
-        return (type(self), (self.run_id, self.stored))
-
-
-def run(
-    spec: RunSpec,
-    optimizer_info: OptimizerInfo,
-    problem_info: ProblemInfo,
-    store: RunStore | str | Path,
-    progress: Progress | None = None,
-    executor: Executor | None = None,
-) -> RunResult:
-    """Run spec.optimizer on spec.problem for spec.budget evaluations, storing each one in
-    ``store`` (a RunStore, or the path of one, opened only once every check has passed, so
-    that refused settings leave no new file behind).
-
-    Parameters are validated against the plugins' declarations first (ConfigError on bad input).
-    Ctrl-C or SIGTERM marks the run 'interrupted' and raises RunInterrupted.
-    """
-    prepared = _prepared(spec, optimizer_info, problem_info)
-    spec, problem = prepared.spec, prepared.problem
-    try:
-        with _opened(store) as opened:
-            return _stored_run(prepared, optimizer_info, problem_info, opened, progress, executor)
-    finally:
-        problem.close()
-
-
-@contextmanager
-def _opened(store: RunStore | str | Path) -> Iterator[RunStore]:
-    """``store`` itself (its owner closes it), or the store at that path, closed after."""
-    if isinstance(store, RunStore):
-        yield store
-        return
-    with RunStore(store) as opened:
-        yield opened
-
-
-def _stored_run(
-    prepared: _Prepared,
-    optimizer_info: OptimizerInfo,
-    problem_info: ProblemInfo,
-    store: RunStore,
-    progress: Progress | None,
-    executor: Executor | None,
-) -> RunResult:
-    """The prepared run, created in the store and executed."""
-    spec, problem = prepared.spec, prepared.problem
-    run_id = store.create_run(
-        optimizer=optimizer_info.name,
-        optimizer_params=prepared.optimizer_params,
-        problem=problem_info.name,
-        problem_params=prepared.problem_params,
-        seed=spec.seed,
-        budget=spec.budget,
-        sense=Sense(problem.sense).value,
-        space=problem.space.to_json(),
-        settings=asdict(spec.settings),
-        versions=environment_versions(),
-    )
-    store.claim(run_id)
-    session = _Session(
-        run_id, spec, prepared.optimizer, problem, problem_info, store,
-        prepared.problem_params,
-    )  # fmt: skip
-    with adopt_problem(problem_info.factory, prepared.problem_params, problem):
-        return session.execute(executor or SerialExecutor(), progress)
-
-
-def check_run(spec: RunSpec, optimizer_info: OptimizerInfo, problem_info: ProblemInfo) -> None:
-    """Make every check run() makes before it stores anything (settings, the problem and the
-    optimizer built from them, the warm start, the mode), and nothing else: ConfigError on the
-    first bad one, so that a long script can refuse a later run's settings before it starts."""
-    _prepared(spec, optimizer_info, problem_info).problem.close()
-
-
-@dataclass(frozen=True)
-class _Prepared:
-    """What a run builds before it stores anything."""
-
-    spec: RunSpec  # with its start points fixed
-    problem: Problem  # open: the caller closes it
-    optimizer: Optimizer
-    optimizer_params: dict[str, Any]
-    problem_params: dict[str, Any]
-
-
-def _prepared(spec: RunSpec, optimizer_info: OptimizerInfo, problem_info: ProblemInfo) -> _Prepared:
-    """The spec checked, and the problem and optimizer built from it (ConfigError on bad input;
-    the problem is closed when a later check fails)."""
-    if spec.budget < 1:
-        raise ConfigError(f"budget must be a positive number of evaluations, got {spec.budget}")
-    spec.settings.check(spec.budget)
-    given = dict(spec.optimizer_params)
-    if any(p.name == "budget" for p in optimizer_info.params):
-        # Schedules (e.g. IHS) span the candidates the optimizer will be told.
-        given.setdefault("budget", spec.budget // spec.settings.resample)
-    optimizer_params = resolve(optimizer_info.params, given, optimizer_info.name)
-    problem_params = resolve(problem_info.params, spec.problem_params, problem_info.name)
-    problem = problem_info.factory(**problem_params)
-    try:
-        optimizer = optimizer_info.factory(problem.space, spec.seed, **optimizer_params)
-        unfit = optimizer.budget_warning(spec.budget // spec.settings.resample)
-        if unfit is not None:
-            warnings.warn(f"{optimizer_info.name}: {unfit}", SettingWarning, stacklevel=3)
-        if spec.settings.common_seeds == "batch" and spec.settings.batch_size(optimizer) == 1:
-            warnings.warn(
-                f"{optimizer_info.name} asks one candidate per batch: with common seeds per "
-                "batch every candidate still meets seeds of its own; give --batch N for N "
-                "candidates to share them, or use --common-seeds run",
-                SettingWarning,
-                stacklevel=3,
-            )
-        spec = _with_start_points(spec, problem.space, optimizer)
-        if spec.settings.screen:
-            _check_screening(spec, optimizer_info.name, optimizer, problem_info.name, problem)
-        if spec.settings.mode == "async" and not optimizer.steady_state:
-            raise ConfigError(
-                f"optimizer {optimizer_info.name!r} is generational, not steady-state: it "
-                "cannot run in async mode; use --mode sync (e.g. with --workers N)"
-            )
-    except BaseException:
-        problem.close()
-        raise
-    return _Prepared(spec, problem, optimizer, optimizer_params, problem_params)
-
-
-def _check_screening(
-    spec: RunSpec, optimizer_name: str, optimizer: Optimizer, problem_name: str, problem: Problem
-) -> None:
-    """ConfigError unless the problem has a screen and the optimizer ranks whole batches."""
-    if not problem.screens:
-        raise ConfigError(
-            f"problem {problem_name!r} with these settings has no cheaper bound to screen "
-            "with (its docs say which settings give one); run without --screen"
-        )
-    if optimizer.selected is None:
-        raise ConfigError(
-            f"optimizer {optimizer_name!r} reads every candidate's fitness, so none can be "
-            "left screened; screening needs one whose update reads only its best ranks, "
-            "such as cmaes"
-        )
-    if spec.settings.batch not in (0, optimizer.batch_size):
-        raise ConfigError(
-            f"--screen ranks the optimizer's own batch ({optimizer.batch_size} for "
-            f"{optimizer_name}); leave --batch out or give {optimizer.batch_size}"
-        )
-
-
-def _with_start_points(spec: RunSpec, space: Space, optimizer: Optimizer) -> RunSpec:
-    """The spec with its warm start checked against the space and its number of start points
-    fixed (the optimizer's initial population when 0), so that a resume draws the same ones."""
-    settings = spec.settings
-    if settings.start is None:
-        return spec
-    for point in settings.start:
-        check_start(space, point)
-    count = settings.start_points or optimizer.initial_population
-    if count < len(settings.start):
-        given = "asked for" if settings.start_points else "the optimizer's initial population"
-        raise ConfigError(
-            f"{len(settings.start)} points to start from but {count} start points ({given}); "
-            "start from fewer points or ask for at least as many start points"
-        )
-    return replace(spec, settings=replace(settings, start_points=count))
-
-
-def resume(
-    run_id: int | str,
-    store: RunStore,
-    optimizer_info: OptimizerInfo,
-    problem_info: ProblemInfo,
-    progress: Progress | None = None,
-    executor: Executor | None = None,
-    max_time: float | None = None,
-    budget: int | None = None,
-) -> RunResult:
-    """Continue a stored run that did not finish, that stopped at its max time with budget
-    left, or (given a larger ``budget``) that spent its budget, from its last checkpoint;
-    ``max_time`` and ``budget`` replace the stored ones (stored with the run). ``budget`` need
-    only exceed the evaluations made, so a run stopped early can be given N more: its count
-    plus N, below its stored budget too.
-
-    In sync mode evaluations stored after the checkpoint are reused, not recomputed, so the
-    resumed run ends exactly where an uninterrupted one would (one given the time or budget at
-    once), but for an optimizer whose schedule spans its budget (its ``budget`` parameter stays
-    the one it started with: past it the schedule stays at its end).
-    """
-    record = store.run(run_id)
-    if budget is not None:
-        made = store.evaluation_counts(record.id).stored
-        if budget <= made:
-            raise ConfigError(
-                f"budget must be more than the {made} evaluations run {record.id} has made "
-                f"(evaluations in all, not more), got {budget}"
-            )
-    stopped_early = (record.message or "").startswith(MAX_TIME_STOP)
-    if record.status == "finished" and not stopped_early and budget is None:
-        raise ConfigError(
-            f"run {record.id} already finished; nothing to resume (a larger budget continues "
-            "a run that spent its budget)"
-        )
-    if max_time is not None:
-        record.settings = {**record.settings, "max_time": max_time}
-    if budget is not None:
-        record.budget = budget
-    RunSettings(**record.settings).check(record.budget)
-    # A parameter a plugin declared after the run was stored takes its default, as a replay's do.
-    optimizer_params = resolve(optimizer_info.params, record.optimizer_params, optimizer_info.name)
-    problem_params = resolve(problem_info.params, record.problem_params, problem_info.name)
-    spec = RunSpec(
-        optimizer=record.optimizer,
-        problem=record.problem,
-        budget=record.budget,
-        seed=record.seed,
-        optimizer_params=optimizer_params,
-        problem_params=problem_params,
-        settings=RunSettings(**record.settings),
-    )
-    problem = problem_info.factory(**problem_params)
-    try:
-        optimizer = optimizer_info.factory(problem.space, record.seed, **optimizer_params)
-        checkpoint = record.checkpoint or {"state": None, "told_below": 0, "told_extra": []}
-        if checkpoint["state"] is not None:
-            optimizer.load_state_dict(checkpoint["state"])
-        store.claim(record.id)  # refused while another live process runs it
-        store.mark_running(record.id, record.settings, record.budget)
-        session = _Session(record.id, spec, optimizer, problem, problem_info, store, problem_params)
-        session.restore(record, checkpoint)
-        with adopt_problem(problem_info.factory, problem_params, problem):
-            return session.execute(executor or SerialExecutor(), progress)
-    finally:
-        problem.close()
-
-
-@dataclass
-class _Candidate:
+class Candidate:
     """A candidate being evaluated: its samples' outcomes as they come back."""
 
     number: int
@@ -460,7 +45,7 @@ class _Candidate:
         return all(o is not None for o in self.outcomes)
 
 
-class _Session:
+class Session:
     """One run's loop state: counters, best so far, checkpoints."""
 
     def __init__(
@@ -533,7 +118,7 @@ class _Session:
         for number, evaluations in by_candidate.items():
             if len(evaluations) == self.resample and self._was_told(number):
                 outcomes = [_outcome_of(e) for e in evaluations]
-                self._score(_Candidate(number, evaluations[0].x, outcomes))
+                self._score(Candidate(number, evaluations[0].x, outcomes))
             elif not self._was_told(number):
                 self.reusable.update((e.index, e) for e in evaluations)
         self.stored -= len(self.reusable)  # counted again when reused
@@ -615,7 +200,7 @@ class _Session:
             # the budget past a short last batch: the optimizer is asked as in the longer run.
             count = min(batch_size - first % batch_size, (self.total - next_index) // self.resample)
             candidates = [
-                _Candidate(first + i, x, [None] * self.resample)
+                Candidate(first + i, x, [None] * self.resample)
                 for i, x in enumerate(self._ask(first, count))
             ]
             if self.settings.screen:
@@ -629,7 +214,7 @@ class _Session:
             self._after_tell(progress)
 
     def _run_async(self, executor: Executor, progress: Progress | None) -> None:
-        in_flight: dict[Future, _Candidate] = {}
+        in_flight: dict[Future, Candidate] = {}
         open_candidates = self._unfinished_candidates()
         next_index = max([self.told_below, *((c.number + 1) * self.resample
                                               for c in open_candidates)])  # fmt: skip
@@ -643,7 +228,7 @@ class _Session:
                 len(in_flight) < executor.capacity and next_index < self.total and not self.stopping
             ):
                 x = self._ask(next_index // self.resample, 1)[0]
-                candidate = _Candidate(next_index // self.resample, x, [None] * self.resample)
+                candidate = Candidate(next_index // self.resample, x, [None] * self.resample)
                 in_flight.update(self._submit(executor, [candidate]))
                 next_index += self.resample
             done, _ = wait(list(in_flight), return_when=FIRST_COMPLETED)
@@ -677,19 +262,19 @@ class _Session:
     def out_of_time(self) -> bool:
         return time.perf_counter() >= self.deadline
 
-    def _tell_one(self, candidate: _Candidate, progress: Progress | None) -> None:
+    def _tell_one(self, candidate: Candidate, progress: Progress | None) -> None:
         self.optimizer.tell(candidate.x[None, :], np.array([self._score(candidate)]))
         self.told_extra.add(candidate.number)
         self._advance_told_below()
         self._after_tell(progress)
 
-    def _unfinished_candidates(self) -> list[_Candidate]:
+    def _unfinished_candidates(self) -> list[Candidate]:
         """Resumed async runs: candidates stored but not told, with their stored outcomes."""
-        grouped: dict[int, _Candidate] = {}
+        grouped: dict[int, Candidate] = {}
         for index, evaluation in sorted(self.reusable.items()):
             number = index // self.resample
             candidate = grouped.setdefault(
-                number, _Candidate(number, evaluation.x, [None] * self.resample)
+                number, Candidate(number, evaluation.x, [None] * self.resample)
             )
             candidate.outcomes[index % self.resample] = _outcome_of(evaluation)
             self.stored += 1
@@ -701,9 +286,9 @@ class _Session:
             self.told_extra.discard(self.told_below // self.resample)
             self.told_below += self.resample
 
-    def _submit(self, executor: Executor, candidates: list[_Candidate]) -> dict[Future, _Candidate]:
+    def _submit(self, executor: Executor, candidates: list[Candidate]) -> dict[Future, Candidate]:
         """Start every missing sample of the candidates; stored ones (resume) are reused."""
-        futures: dict[Future, _Candidate] = {}
+        futures: dict[Future, Candidate] = {}
         for candidate in candidates:
             for sample in range(self.resample):
                 if candidate.outcomes[sample] is not None:
@@ -718,7 +303,7 @@ class _Session:
         return futures
 
     def _task(
-        self, candidate: _Candidate, index: int, phase: str = "evaluate",
+        self, candidate: Candidate, index: int, phase: str = "evaluate",
         screened: Evaluation | None = None,
     ) -> EvaluationTask:  # fmt: skip
         return EvaluationTask(
@@ -726,7 +311,7 @@ class _Session:
             self.settings.time_limit, self.problem_key, phase, screened,
         )  # fmt: skip
 
-    def _screen_and_complete(self, executor: Executor, candidates: list[_Candidate]) -> None:
+    def _screen_and_complete(self, executor: Executor, candidates: list[Candidate]) -> None:
         """Screen the batch, then complete its candidates best bound first until no other can
         enter the optimizer's selected ranks: candidate j is completed unless ``selected`` of
         those before it scored better than its bound (none after it can: their full fitness
@@ -746,7 +331,7 @@ class _Session:
         selected = self.optimizer.selected
         assert selected is not None, "_check_screening refuses an optimizer without one"
         done: dict[int, Outcome] = {}
-        in_flight: dict[Future, _Candidate] = {}
+        in_flight: dict[Future, Candidate] = {}
         decided: list[float] = []  # the scores of order[:len(decided)], all completed
         ahead = 0  # order[:ahead] are started (or reused)
         cut = len(order)
@@ -806,7 +391,7 @@ class _Session:
                 bound = {**screen.metrics, SCREEN_BOUND: screen.fitness}
                 self._record(candidate, replace(screen, screened=True, fitness=None, metrics=bound))
 
-    def _check_bound(self, candidate: _Candidate, screen: Outcome, complete: Outcome) -> None:
+    def _check_bound(self, candidate: Candidate, screen: Outcome, complete: Outcome) -> None:
         """RunFailed where a full fitness beat its screen's: the screen is then no bound, and
         the candidates it cut might have ranked among the selected ones."""
         if complete.fitness is not None and (
@@ -819,7 +404,7 @@ class _Session:
                 "better); fix the screen or run without screening"
             )
 
-    def _reused_complete(self, candidates: list[_Candidate]) -> dict[int, Outcome]:
+    def _reused_complete(self, candidates: list[Candidate]) -> dict[int, Outcome]:
         """A resumed batch's candidates stored complete (or failed) before the interruption,
         by number; stored screens are done again, since the order needs every bound."""
         reused: dict[int, Outcome] = {}
@@ -832,7 +417,7 @@ class _Session:
                 reused[candidate.number] = _outcome_of(stored)
         return reused
 
-    def _screens(self, executor: Executor, candidates: list[_Candidate]) -> dict[int, Outcome]:
+    def _screens(self, executor: Executor, candidates: list[Candidate]) -> dict[int, Outcome]:
         """Every candidate's screen, by candidate number (all of them finished)."""
         futures = {executor.submit(self._task(c, c.number, "screen")): c for c in candidates}
         return {candidate.number: future.result() for future, candidate in futures.items()}
@@ -841,7 +426,7 @@ class _Session:
         """The (minimizing) score of a completed outcome: +inf where it failed."""
         return math.inf if outcome.fitness is None else self.sign * outcome.fitness
 
-    def _collect(self, futures: dict[Future, _Candidate], candidates: list[_Candidate]) -> None:
+    def _collect(self, futures: dict[Future, Candidate], candidates: list[Candidate]) -> None:
         """Store every outcome as soon as it completes (in-process ones without waiting)."""
         waiting = []
         for future, candidate in futures.items():
@@ -853,7 +438,7 @@ class _Session:
             for future in as_completed(waiting):
                 self._record(futures[future], future.result())
 
-    def _record(self, candidate: _Candidate, outcome: Outcome) -> None:
+    def _record(self, candidate: Candidate, outcome: Outcome) -> None:
         candidate.outcomes[outcome.index % self.resample] = outcome
         self.stored += 1
         self.failed += outcome.error is not None
@@ -882,7 +467,7 @@ class _Session:
             "evaluation fail)"
         )
 
-    def _score(self, candidate: _Candidate) -> float:
+    def _score(self, candidate: Candidate) -> float:
         """The optimizer's (minimizing) score of a complete candidate, +inf if any sample
         failed; keeps the best candidate so far."""
         outcomes = candidate.outcomes
@@ -944,22 +529,3 @@ def _evaluation_of(outcome: Outcome) -> Evaluation:
     """A screen's outcome as the Evaluation its complete phase continues from."""
     assert outcome.fitness is not None
     return Evaluation(outcome.fitness, dict(outcome.metrics))
-
-
-@contextmanager
-def stop_on_sigterm() -> Iterator[None]:
-    """Turn SIGTERM into KeyboardInterrupt while a run (or a compare --jobs) goes on (main
-    thread only)."""
-
-    def interrupt(signum: int, frame: object) -> None:
-        raise KeyboardInterrupt
-
-    try:
-        previous = signal.signal(signal.SIGTERM, interrupt)
-    except ValueError:  # not the main thread: leave signals alone
-        yield
-        return
-    try:
-        yield
-    finally:
-        signal.signal(signal.SIGTERM, previous)
