@@ -131,6 +131,8 @@ class Session:
     # -- the loop --------------------------------------------------------------------------
 
     def execute(self, executor: Executor, progress: Progress | None) -> RunResult:
+        """Run the loop to its end on ``executor`` and store how it ended (finished, failed or
+        interrupted), everything evaluated kept."""
         # Starting and stopping the executor's workers (a Dask cluster: seconds) is part of the
         # run's cost: its wall time counts both.
         started = time.perf_counter() - executor.startup_time
