@@ -68,7 +68,7 @@ def test_two_local_dask_clusters_at_once_each_serve_on_their_own_loopback_port()
         try:
             links = [executor.dashboard for executor in (first, second)]
             for link in links:  # each served while its cluster runs
-                health = link.split()[0].replace("/status", "/health")
+                health = link.replace("/status", "/health")
                 with urllib.request.urlopen(health, timeout=10) as answer:
                     assert answer.read() == b"ok"
         finally:

@@ -80,7 +80,10 @@ def build_executor(name: str | None, workers: int | None, scheduler: str | None)
     executor = info.factory(workers or (1 if name == "serial" else cores), scheduler)
     executor.startup_time = time.perf_counter() - started
     if executor.dashboard:  # a free port each time, so only this line tells where it is
-        errors.print(f"The {name} executor's dashboard: {executor.dashboard}", highlight=False)
+        missing = executor.dashboard_needs
+        note = f" (install {missing} to see it; until then a placeholder)" if missing else ""
+        line = f"The {name} executor's dashboard: {executor.dashboard}{note}"
+        errors.print(line, highlight=False)
     return executor
 
 

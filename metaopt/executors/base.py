@@ -181,9 +181,11 @@ class Executor(ABC):
     #: counts them in its wall time.
     startup_time: float = 0.0
     #: The address of a page showing the workers as they run, where the executor serves one
-    #: (a local Dask cluster's dashboard), with what it needs to show them if that is missing;
-    #: None otherwise.
+    #: (a local Dask cluster's dashboard); None otherwise.
     dashboard: str | None = None
+    #: The package (with its version bound) that page needs to show the workers, where it is
+    #: not installed: until then the page is a placeholder; None when nothing is missing.
+    dashboard_needs: str | None = None
 
     @property
     def capacity(self) -> int:

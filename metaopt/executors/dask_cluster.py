@@ -51,7 +51,7 @@ class DaskExecutor(Executor):
                 self._client = Client(self._cluster)
                 self.dashboard = self._cluster.dashboard_link
                 if importlib.util.find_spec("bokeh") is None:  # Dask draws its pages with it
-                    self.dashboard += " (install bokeh>=3.1 to see it; until then a placeholder)"
+                    self.dashboard_needs = "bokeh>=3.1"
             else:
                 self._client = Client(address, timeout=10)
         except (OSError, TimeoutError) as error:
