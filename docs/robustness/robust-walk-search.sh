@@ -81,7 +81,7 @@
 # TRIALS=2 TRIAL_TIME=300, on fresh seeds 129-131.
 # Design AA is design V with fitness=robust added to STAGE1B_SET (a later --set wins over the
 # script's fitness=progress: a fall costs 1 m more for every second the walk had left), on fresh
-# seeds 135-137 (missed: PyBullet's speed and falls as their median).
+# seeds 135-137 (missed: PyBullet's and ODE's speed and PyBullet's falls as their median).
 # RECHECK_LAST=N re-checks each final stage 1b's TOP best among its N latest candidates
 # (metaopt robustness --last N) rather than among all: where stage 1b's scores tie at the cap,
 # its TOP best are otherwise the earliest of the tied. Design W is design V with
