@@ -21,6 +21,7 @@ import pytest
 from click.testing import CliRunner
 
 from metaopt.cli import main
+from metaopt.storage.export import dump_json
 from tests.conftest import metaopt_cli, one_error_line
 from tests.engines import needs_ode
 
@@ -415,6 +416,30 @@ def _strict_json(text: str):
         raise ValueError(f"{constant} is not JSON")
 
     return json.loads(text, parse_constant=refuse)
+
+
+def test_json_output_is_strict_with_each_list_element_on_a_line_of_its_own():
+    """dump_json (export, show, compare --format json): non-finite floats anywhere, in a nested
+    object or inside a list's element, become the strings float() reads back; every element of
+    a list is one line, so a run's evaluations are one per line."""
+    value = {
+        "run": {"friction": float("inf"), "name": "a", "empty": [], "none": {}},
+        "evaluations": [
+            {"index": 0, "metrics": {"speed": float("nan")}, "x": [1.0, -float("inf")]},
+            {"index": 1, "metrics": {"speed": 0.5}, "x": [0.25, 2.0]},
+        ],
+    }
+    out = io.StringIO()
+    dump_json(value, out)
+    text = out.getvalue()
+    assert text.endswith("}\n")
+    read = _strict_json(text)
+    assert read["run"] == {"friction": "inf", "name": "a", "empty": [], "none": {}}
+    assert read["evaluations"][0] == {"index": 0, "metrics": {"speed": "nan"}, "x": [1.0, "-inf"]}
+    assert read["evaluations"][1] == value["evaluations"][1]
+    lines = text.splitlines()
+    for row in read["evaluations"]:
+        assert sum(line.strip().rstrip(",") == json.dumps(row) for line in lines) == 1
 
 
 @needs_ode

@@ -1,222 +1,109 @@
 #!/bin/bash
 # The robust-walk search of docs/robustness.md (issue 16, part 4), one seed per call:
-#   bash docs/robustness/robust-walk-search.sh SEED     (about 25 minutes on 2 cores)
-# Three independent pipelines, then a choice among their best candidates over the whole table.
-# Each pipeline (p = 1, 2, 3), with the steered controller (the stride one with heading
-# feedback: it steps further with one leg than with the other to turn back to its heading):
-#   Stage 1: four HS runs from random gaits on MuJoCo alone, nominal world, with the flight
-#     penalty (a walk, not a run), run seeds 100 SEED + 10 p + 1 ... + 4, two candidates per
-#     batch, one per worker (HS improvises one at a time by default): gaits that walk, found
-#     cheaply; about half the runs find a walker.
-#   Basins: the four runs' bests raced in the nominal world on all three engines, 8 seeds
-#     each (drawn from 3), ranked by the slowest engine's median speed (--goal speed>=0.44):
-#     stage 1b starts from the winner alone, so its memory holds one basin (started from all
-#     four, most of its first 300 harmonies mixed them and fell).
-#   Stage 1b: HS (run seed 10 SEED + p) from that best (then gaits within 5 % of each range
-#     around it) on all three engines at noise 0.1, scored by the mean of
-#     the engines' progress, each capped at 6 m (engine_cap: 0.5 m/s over the 12 s walked; past
-#     it an engine's progress stops paying, so a gait MuJoCo already walks fast is pushed to
-#     walk on PyBullet and ODE), a fall costing 1 m and the walk it cut short
-#     (fitness=progress), at flight penalty 50, charged past the cap too; 600 evaluations.
-# Re-check: each stage 1b's 3 best candidates (9 in all) over the standard table, one seed per
-#   cell (drawn from 1), ranked by their worst engine's mean fitness (robust fitness, flight
-#   penalty 100): a run's best is the luckiest of hundreds of one-episode scores, and which
-#   pipeline's basin holds best is only seen over the table.
-# Race: the re-check's 3 best again over the table, 10 fresh seeds per cell (drawn from 2),
-#   ranked by the goal (metaopt robustness --goal): the smallest relative margin to part 4's
-#   bounds on any engine, with a fall bound of 2 % rather than the goal's 5 %, room for the
-#   noise of a fall rate estimated from 110 episodes; then by fitness. One seed per cell cannot
-#   tell a gait that falls 1 time in 20 from one that falls 1 time in 10, and the winner of 9
-#   noisy scores is the luckiest: fresh seeds for the few best correct the luck (racing, as in
-#   successive halving). Each choice reads the previous one's --ranking CSV.
-# Then the chosen candidate over the whole standard table on the standard seeds (drawn from 0).
-# The standard table is the installed one: every search of the log ran with nao-walk-1; from
-# commit "table nao-walk-2" on, the re-check, the race and the final table leave ODE's friction
-# cells out (ODE's unlimited friction has none to scale), as docs/robustness.md says.
-# Knobs for the pilots after the twelfth search (docs/robustness/searches.md): TOP=10 (the
-# re-check takes each stage 1b's 10 best), STAGE1_ENGINE=ode (stage 1 on ODE).
-# STAGE1_SET="NAME=VALUE ..." adds problem settings to every stage-1 run (the basin race
-# walks the whole 15 s episode whatever stage 1 walked): STAGE1_SET=duration=9 (6 s of walking,
-# half the cost) with STAGE1B_BUDGET=900 gives stage 1b the time stage 1 saves.
-# STAGE1B_SET="NAME=VALUE ..." adds problem settings to every stage 1b: the pilots after the
-# thirteenth (docs/robustness/searches.md) ran STAGE1B_SET=worlds=standard (sampled worlds),
-# STAGE1B_SET=flight_allowed=0.02 (a flight margin), both, and STAGE1B_SET=flight_allowed=0.035
-# (a milder margin), which also ran as whole searches on fresh seeds 4-6; the one-seed pilot
-# after the half walk ran STAGE1B_SET="flight_allowed=0.035 engine_score=worst" on seeds 10-11 (a
-# later --set of a name wins over the script's engine_score=mean); the whole searches on fresh
-# seeds 12-14 ran STAGE1B_SET="flight_allowed=0.035 engine_score=worst worlds=pushes" (every
-# stage-1b evaluation pushed once, 1 N·s in a seed-drawn direction and time).
-# STAGE1B_RESAMPLE=K scores every stage-1b candidate over the same K evaluation seeds (--resample
-# K --common-seeds, the mean of the K scores; STAGE1B_BUDGET counts evaluations, so it tries
-# STAGE1B_BUDGET / K candidates): with worlds=standard, K fixed cells of the table, the same for
-# every candidate, in place of one cell drawn per evaluation. The whole searches on fresh seeds
-# 15-16 (17 was stopped) ran STAGE1B_RESAMPLE=3 STAGE1B_BUDGET=540 STAGE1B_SET="flight_allowed=0.035
-# engine_score=worst worlds=standard".
-# STAGE1B_COMMON=batch gives the candidates of each stage-1b batch (a CMA-ES generation) the same
-# evaluation seeds, fresh ones per batch (--common-seeds batch): the candidates CMA-ES ranks
-# against each other meet the same world, push and noise. With STAGE1B_RESAMPLE it replaces the
-# run-wide seeds (run). Design T is design S with STAGE1B_COMMON=batch and LATER_STAGES=540.
-# Design U is design T with LATER_STAGES=auto and STAGE1B_BUDGET=6000 (the deadline ends stage
-# 1b), on fresh seeds 104-106 (within part 4's goal as their median), 107 and 108-110 (not).
-# Design V is design U with STAGE1B_CELLS="nominal,nominal,nominal,servo gain x1.2,servo gain
-# x1.2,latency 1" (servo gain x1.2 drawn twice as often), on fresh seeds 111-113 (one PyBullet
-# fall in 110 episodes short of the goal as their median) and 114-116 (two falls short).
-# STAGE1B_DURATIONS="NAME=SECONDS,..." (with STAGE1B_CELLS) sets nao-walk's cell_durations in
-# stage 1b: the named cells walk that long, capped at the same speed (engine_cap scales with the
-# walking time), the others STAGE1B_SET's duration. Design X is design V with
-# STAGE1B_DURATIONS="servo gain x1.2=15,latency 1=15" (a 12 s walk in the cells where V's gaits
-# fell late, 7 s in the nominal world).
-# Design Y is design X with STAGE1_RUNS=4 STAGE1_TIME=280 (stage 1b gets the 210 s of three
-# stage-1 runs), on fresh seeds 126-128 (PyBullet's and ODE's speed missed as their median; seed
-# 126 within the goal).
-# TRIALS=N TRIAL_TIME=SECONDS (with STAGE1B_START=pool, PIPELINES=1 and DEADLINE) starts N trial
-# stages 1b, one from each of the pool's N best basins (run seeds 10 SEED + 1 ... + N), each for
-# at most TRIAL_TIME s, then continues the one whose last 300 evaluations (candidates, without
-# STAGE1B_RESAMPLE) walk fastest on their slowest engine (metaopt show --recent 300: each
-# engine's median speed; the slowest of them)
-# to the deadline (metaopt resume --max-time); the re-check takes that run. Two basins of one seed
-# climb to levels apart by 0.08-0.16 m/s on PyBullet after 1 500 candidates (measurement M4 in
-# docs/robustness/searches.md), and the basin race's nominal speed does not tell which.
-# Design Z is design Y without FLAT_BEST (it cannot act with PIPELINES=1 under DEADLINE) with
-# TRIALS=2 TRIAL_TIME=300, on fresh seeds 129-131.
-# Design AA is design V with fitness=robust added to STAGE1B_SET (a later --set wins over the
-# script's fitness=progress: a fall costs 1 m more for every second the walk had left), on fresh
-# seeds 135-137 (missed: PyBullet's and ODE's speed and PyBullet's falls as their median).
-# RECHECK_LAST=N re-checks each final stage 1b's TOP best among its N latest candidates
-# (metaopt robustness --last N) rather than among all: where stage 1b's scores tie at the cap,
-# its TOP best are otherwise the earliest of the tied. Design W is design V with
-# RECHECK_LAST=1000, on fresh seeds 117-119 (not within the goal; no stage 1b reached the cap).
-# FINALS="RUN ..." runs the later stages alone (re-check, race, table) on the store
-# robust-walk-sSEED.db already in the working folder, from these final stage-1b runs (FINALS=8
-# for a search with one pipeline and seven stage-1 runs): another choice among what a search
-# made (TOP, RECHECK_LAST, RACE_SEEDS, RACE_FELL), paired with its own, since the later stages
-# never feed back into stage 1 or 1b. It writes the later stages' files again: run it in a copy
-# of the search's folder. Selection W on designs V's and U's stores is FINALS=8 TOP=6
-# RACE_FELL=0.05 RECHECK_LAST=1000 (docs/robustness/searches.md).
-# STAGE1B_SCREEN=1 screens stage 1b (metaopt run --screen; with STAGE1B_OPTIMIZER=cmaes and
-# engine_score=worst in STAGE1B_SET): each candidate walks on MuJoCo and ODE first, and on
-# PyBullet only where it can still rank in CMA-ES's better half, which changes no step of
-# CMA-ES but buys stage 1b more candidates in its time (benchmarks/screening.py). Design Q is
-# design O with STAGE1B_SCREEN=1. FLAT_FELL's share is then over the completed candidates.
-# STAGE1B_OPTIMIZER=NAME runs stage 1b with another optimizer than hs (its settings through
-# STAGE1B_SET): STAGE1B_OPTIMIZER=cmaes STAGE1B_SET="sigma0=0.05 ..." is CMA-ES started at the
-# raced basin, its first generation the basin and 11 points around it (a generation is 12 for the
-# steered controller's 15 parameters), its step 0.05 of each range.
-# STAGE1B_BATCH=B asks B candidates per batch in stage 1b instead of 2 (two workers, HS's one at a
-# time); 0 is the optimizer's own (cmaes: a generation, 12, the same run as 2, with less waiting).
-# PIPELINES=N runs N pipelines instead of 3 (run seeds as above, p = 1 ... N).
-# STAGE1_RUNS=R runs R stage-1 runs per pipeline instead of 4 (run seeds 100 SEED + 10 p + 1 ... + R).
-# STAGE1B_START=pool runs every pipeline's stage 1 first and races all their bests together in one
-# basin race (robust-walk-sSEED-basins.csv); pipeline p's stage 1b starts from the p-th of that
-# ranking: the pipelines share their tickets, so a pipeline whose own runs found no walker takes
-# one from another's. The pooled-basins searches (docs/robustness/searches.md) ran STAGE1B_START=pool
-# STAGE1_RUNS=2 STAGE1B_BUDGET=480 STAGE1B_OPTIMIZER=cmaes STAGE1B_BATCH=0
-# STAGE1B_SET="sigma0=0.05 flight_allowed=0.035 engine_score=worst worlds=pushes" on fresh seeds
-# 22-24; seed 21 ran it with STAGE1_SET=duration=9 and STAGE1B_BUDGET=600 (the lean stage 1).
-# STAGE1_OPTIMIZER=NAME runs stage 1 with another optimizer than hs (its settings through
-# STAGE1_SET), STAGE1_BATCH=B with B candidates per batch instead of 2 (0: the optimizer's own):
-# STAGE1_OPTIMIZER=cmaes STAGE1_BATCH=0 is CMA-ES from a random first generation at its default
-# step, 0.3 of each range (docs/robustness/searches.md, CMA-ES in stage 1).
-# BASIN_FELL=RATE adds the goal fell<=RATE to every basin race (a rate from 0 to 1): a basin
-# that falls in more of its nominal episodes on any engine ranks by that margin, not by its
-# speed alone (a speed is measured up to the fall, so a fast gait that falls on two engines
-# ranked first; stage 1b from such a basin found no candidate that stays up).
-# RACE_SEEDS=N races the re-check's 3 best over N seeds per cell instead of 10 (the race costs
-# about 3 x 10 episodes per cell, 270-330 s of design Q's later stages).
-# RACE_FELL=RATE is the race's fall bound instead of 0.02: at 0.02 a gait falling in 4 % of
-# the race's episodes misses by as much as one that stands still (the margins are relative to
-# the bound), so the race chose slower, safer gaits over faster ones that fall now and then.
-# The CMA-ES stage-1 searches (docs/robustness/searches.md) ran STAGE1_OPTIMIZER=cmaes
-# STAGE1_BATCH=0 BASIN_FELL=0.25 RACE_FELL=0.05 with the pooled-basins searches' knobs on fresh
-# seeds 26-28; seed 25 ran it without BASIN_FELL and RACE_FELL; the one-seed pilot on seed 29
-# added STAGE1_ENGINE=mujoco+ode STAGE1_RUNS=1 (stage 1 scored by the worse of two engines).
-# DEADLINE=SECONDS fits the search to a wall-clock limit (with STAGE1B_START=pool, where every
-# stage 1 comes first): each stage 1b gets the time left to the deadline, less LATER_STAGES
-# seconds (390 unless set) for the re-check, race and final table, shared among the pipelines
-# still to run (metaopt run --max-time; STAGE1B_BUDGET stays the most it evaluates).
-# Seeds 30-35 ran with 330 s (those stages took 253-294 s on seeds 22-24); on seed 34 they
-# took 330 s and the search 1801 s.
-# Seeds 36-58 ran with 360 s; on seed 56 they took 365 s and the search 1810 s.
-# LATER_STAGES=auto sets that time from the basin race, which walks the same 15 s episodes on
-# the same three engines just before stage 1b: its seconds per episode, times the later stages'
-# episodes, a fifth more, and 20 s for their three commands. The later stages took 0.92-1.09
-# times the basin race's time per episode in designs H and R (H: race 42-52 s for 240 episodes,
-# later stages 272-340 s for 1426; R: 74-84 s, 405-459 s), so a fixed LATER_STAGES starves
-# stage 1b on a fast day and overruns on a slow one.
-# STAGE1_TIME=SECONDS (with STAGE1B_START=pool) gives every stage-1 run together at most that
-# long: each run gets an even share of the stage-1 time left (metaopt run --max-time), so that a
-# slower day cuts stage 1's evaluations, not stage 1b's time. Design D's stage 1 took 668-747 s,
-# F's 825-905 s and G's (seed 59) 976 s with the same code and settings.
-# FLAT_BEST=METRES (with STAGE1B_START=pool) starts a pipeline again when its stage 1b's best
-# scores below METRES (no candidate walks that far): another stage 1b, run seed 10 SEED + k, from
-# the pool's k-th basin (k = PIPELINES + 1, + 2, ...), while the pool has basins left and, with
-# DEADLINE, the pipeline's share of the time left is at least 60 s; the re-check takes the last
-# run of each pipeline. A flat basin (seeds 31 and 32 of the deadline searches: every candidate
-# fell, best below 0 m, against 2.4-5.7 m for the rest) otherwise costs a third of the tickets.
-# With PIPELINES=1 and DEADLINE the one stage 1b's share is all the time left, so FLAT_BEST acts
-# only on a stage 1b that spends its budget before the deadline (design P's seed 87 kept a flat
-# basin to the end).
-# FLAT_FELL=SHARE (with FLAT_BEST) also counts a stage 1b as flat when at least SHARE of its last
-# 100 candidates fell (metaopt show --recent 100: the share of the metric fell), whatever its
-# best: design J's seed 67 ran its 1400 evaluations in 156 s, all of the last 100 falling, with a
-# lucky best of 2.39 m, and left 595 s of its 30 minutes unused.
-# The flat-basin searches (docs/robustness/searches.md) ran FLAT_BEST=1 with the deadline
-# searches' knobs on fresh seeds 33-35, and with STAGE1_SET=duration=9 on seed 36 (a pilot).
-# The two-pipeline searches ran PIPELINES=2 STAGE1_RUNS=5 with the flat-basin searches' knobs on
-# fresh seeds 37-39 (design A: ten stage-1 runs, each stage 1b about 300 s), and with
-# RACE_FELL=0.05 besides on fresh seeds 40-41 (design B, whose seed 39 is A's own).
-# The one-pipeline searches ran RACE_FELL=0.05 PIPELINES=1 STAGE1_RUNS=10 TOP=6
-# STAGE1B_BUDGET=1400 with design A's other knobs on fresh seeds 42-44 (design C: one stage 1b
-# from the pool's first basin, given the time of two and cut by the deadline), and again,
-# unchanged, on fresh seeds 45-47.
-# The sampled-worlds searches ran design C with STAGE1_SET=worlds=standard (design D: every
-# stage-1 evaluation walks in one cell of the standard table, on MuJoCo) on fresh seeds 48-50,
-# then 51-52.
-# Design E is design D with its stage 1b in sampled worlds too: STAGE1B_SET="sigma0=0.05
-# flight_allowed=0.035 engine_score=worst worlds=standard", on fresh seeds 53-55.
-# STAGE1B_CELLS="NAME,NAME,..." (cell names of the standard table, joined by commas; they hold
-# spaces, which STAGE1B_SET splits on) sets nao-walk's world_cells in stage 1b: with worlds=pushes
-# each pushed evaluation also walks in one of these cells, drawn from its seed; with
-# worlds=standard the cells drawn from. Design F is design D with STAGE1B_CELLS="nominal,servo
-# gain x1.2,latency 1" (the cells where design D's gaits fell on PyBullet, besides the pushes
-# stage 1b already walks through), on fresh seeds 56-58. A cell named k times is drawn k times
-# as often: design G is design D with STAGE1B_CELLS="nominal,nominal,nominal,nominal,servo gain
-# x1.2,latency 1" (a third of stage 1b's evaluations in the two cells, F's dose halved); it ran
-# seed 59 and was stopped (stage 1 took 976 s that day). Design H is design G with
-# STAGE1_TIME=700, on fresh seeds 60-62. With worlds=pushes a push cell's evaluations walk the
-# cell's own push instead of a drawn one: design I is design H with STAGE1B_CELLS="nominal,
-# nominal,nominal,push forward,servo gain x1.2,latency 1" (a sixth of stage 1b's evaluations
-# pushed as the table pushes forward), on fresh seeds 63-65.
-# Design J is design H without STAGE1B_CELLS, both stages on the balanced controller (the
-# steered one with a stepping strategy; a later --set of a name wins): STAGE1_SET="worlds=standard
-# controller=balanced" and controller=balanced added to STAGE1B_SET, on fresh seeds 66-68.
-# Design K is design J with its stage 1 on the steered controller, as design H's (STAGE1_SET=
-# worlds=standard): stage 1b starts the balanced controller from the steered basins, its two
-# gains at their neutral 0 (a start may lack variables with a neutral value), on fresh seeds 69-71.
-# Pilot L is design H (STAGE1B_CELLS above) with controller=balanced added to STAGE1B_SET, on
-# fresh seed 72; design L is the same on fresh seeds 73-75. Every design up to L ran before
-# commit 2144e1a, where nao-walk stopped letting a fall in the first 2 s of walking escape the
-# flight penalty (the cause of the stage 1bs that FLAT_BEST and FLAT_FELL restart).
-# Design M is design L at that commit, on fresh seeds 76-78; its later stages took 406-476 s on
-# a slower day, past the 390 s kept for them. Design N is design M with population=24 added to
-# STAGE1B_SET (CMA-ES's step shrank under noise with 12) and LATER_STAGES=480, on fresh seeds
-# 79-81. Design O is design N with STAGE1_RUNS=7 STAGE1_TIME=490 (each stage-1 run keeps its
-# 70 s; stage 1b gets the time of the three runs left out), on fresh seeds 82-84. Design P is
-# design O with STAGE1_ENGINE=mujoco+ode STAGE1_RUNS=6 STAGE1_TIME=420 LATER_STAGES=620, on fresh
-# seeds 85-87 (pilot R: design O's command on seed 84 with only STAGE1_ENGINE=mujoco+ode added).
-# Design R is design H's command at commit 2144e1a's fixed score, with LATER_STAGES=360 (H's
-# split of the time), on fresh seeds 95-97.
-# Design S is design Q with STAGE1B_SET's "duration=10 engine_cap=3.5" (stage 1b walks 7 s, not
-# 12, capped at the same 0.5 m/s) and STAGE1B_BUDGET=3000, on fresh seeds 98-100. Whatever stage 1
-# or stage 1b walked, the basin race, the re-check, the race and the table walk the standard 15 s.
-# This is the thirteenth search, run after commit d228dc7 (nao-walk charges the flight
-# penalty past engine_cap). STAGE1B_START=all gives the twelfth's stage 1b, from all four
-# stage-1 bests; the twelfth (commit f1b7010) and the thirteenth's pilot ran before d228dc7.
-# The eleventh is the twelfth with a race at 5 seeds per cell ranked by fitness (commit
-# 17bbed3), the tenth the same without the race (commit 208ebc5).
-# The ninth (one pipeline of 800 evaluations in stage 1b, its 8 best re-checked) is this
-# script at commit 5ed7043, the seventh at 3c42de4, the sixth at 6e1fe34, the fifth at
-# 3c8db53, the fourth at ff6956d, the third at abce00d, the second at 9d03e62.
+#   [KNOB=VALUE ...] bash docs/robustness/robust-walk-search.sh SEED
+# Every design in docs/robustness/searches.md gives its whole command; docs/robustness.md ("How
+# a search runs") walks through design V's. Every run goes to robust-walk-sSEED.db in the
+# working folder, which must not exist yet (but with FINALS).
+#
+# The stages, as they run with no knob set (the thirteenth search: three pipelines, HS):
+#   Stage 1: for each pipeline p, STAGE1_RUNS HS runs of 1000 evaluations from random gaits of
+#     the steered controller (the stride one with heading feedback), on MuJoCo alone, in the
+#     nominal world, flight penalty 20; run seeds 100 SEED + 10 p + 1, 2, ...: cheap gaits that
+#     walk (about half the runs find one).
+#   Basin race: the runs' bests walk the nominal world on all three engines, 8 seeds each (drawn
+#     from 3), ranked by the slowest engine's median speed (robustness --goal speed>=0.44,
+#     robust-walk-sSEED[-pP]-basins.csv); stage 1b starts from the winner alone (from four
+#     basins at once, most of HS's first 300 harmonies mixed them and fell).
+#   Stage 1b: HS from that basin (run seed 10 SEED + p), 600 evaluations on all three engines at
+#     noise 0.1, scored by the engines' mean progress, each capped at 6 m (engine_cap: past it
+#     an engine stops paying, so a gait fast on MuJoCo is pushed to walk on the others), a fall
+#     costing 1 m and the walk it cut short (fitness=progress), flight penalty 50.
+#   Re-check: each final stage 1b's TOP best over the standard table, one seed per cell (drawn
+#     from 1), ranked by their worst engine's mean robust fitness (flight penalty 100): a run's
+#     best is the luckiest of hundreds of one-episode scores (-top.csv, -top-ranking.csv).
+#   Race: the re-check's 3 best over the table again at RACE_SEEDS fresh seeds per cell (drawn
+#     from 2), ranked by the goal (robustness --goal: the smallest relative margin to part 4's
+#     bounds on any engine, the fall bound RACE_FELL), then by fitness (-race.csv,
+#     -race-ranking.csv).
+#   Table: the race's winner over the standard table on the standard seeds (drawn from 0),
+#     robust-walk-sSEED.csv and .png. The basin race and the later stages walk the standard 15 s
+#     whatever stage 1 or 1b walked. The standard table is the installed one (nao-walk-3 now).
+#
+# Knobs (environment variables; bad values stop the search with one line, exit 2):
+# Pipelines and their start
+#   PIPELINES=N (3) pipelines; STAGE1_RUNS=R (4) stage-1 runs each.
+#   STAGE1B_START=raced|all|pool (raced): each pipeline's stage 1b from its own raced basin;
+#     from all its stage-1 bests at once (the twelfth search); or every stage 1 first and all
+#     their bests raced in one pool, pipeline p starting from the pool's p-th basin (a pipeline
+#     whose own runs found no walker takes another's ticket).
+#   BASIN_FELL=RATE adds the goal fell<=RATE to the basin race: a basin that falls in more of
+#     its nominal episodes on any engine ranks by that margin, not by its speed (measured up to
+#     the fall, a fast faller can rank first and leave stage 1b nothing that stands).
+#   FLAT_BEST=METRES (pool) starts a pipeline again, from the pool's next basin and run seed
+#     10 SEED + k, when its stage 1b's best scores below METRES, while the pool has basins and
+#     (with DEADLINE) the pipeline's share of the time left is at least 60 s; FLAT_FELL=SHARE
+#     also counts it flat when that share of its last 100 candidates fell. With PIPELINES=1 and
+#     DEADLINE the one stage 1b's share is all the time left, so FLAT_BEST acts only on one that
+#     spends its budget early.
+#   TRIALS=N TRIAL_TIME=SECONDS (pool, DEADLINE, PIPELINES=1, no FLAT_BEST): N trial stage 1bs
+#     from the pool's N best basins (run seeds 10 SEED + 1 ... + N), each at most TRIAL_TIME s;
+#     the one whose last 300 candidates walk fastest on their slowest engine (metaopt show
+#     --recent 300) continues to the deadline (metaopt resume --max-time).
+# Stage 1
+#   STAGE1_ENGINE=E (mujoco), e.g. mujoco+ode (scored by the worse engine).
+#   STAGE1_OPTIMIZER=NAME (hs), STAGE1_BATCH=B (2; 0: the optimizer's own, e.g. a generation).
+#   STAGE1_SET="NAME=VALUE ..." adds nao-walk settings to every stage-1 run (a later --set of a
+#     name wins), e.g. worlds=standard (each evaluation in one cell of the table).
+#   STAGE1_TIME=SECONDS (pool) gives all stage-1 runs together at most that long, each an even
+#     share of what is left (metaopt run --max-time): a slow day cuts stage 1's evaluations,
+#     not stage 1b's time.
+# Stage 1b
+#   STAGE1B_OPTIMIZER=NAME (hs) with its settings in STAGE1B_SET, e.g. cmaes with sigma0=0.05
+#     (CMA-ES started at the raced basin, its step 0.05 of each range).
+#   STAGE1B_BATCH=B (2): candidates per batch; 0 is the optimizer's own (cmaes: a generation).
+#   STAGE1B_BUDGET=N (600): the most it evaluates (with DEADLINE the time usually ends it).
+#   STAGE1B_SET="NAME=VALUE ..." adds nao-walk settings, winning over the ones above, e.g.
+#     engine_score=worst (the slowest engine's score), worlds=pushes (each evaluation pushed
+#     once, 1 N·s in a drawn direction and time), flight_allowed=0.035, controller=balanced,
+#     population=24, duration=10 engine_cap=3.5 (a 7 s walk capped at the same 0.5 m/s),
+#     fitness=robust.
+#   STAGE1B_CELLS="NAME,NAME,..." sets world_cells (cell names hold spaces, which STAGE1B_SET
+#     splits on): with worlds=pushes each pushed evaluation also walks in one of these cells,
+#     with worlds=standard they are the cells drawn from; a cell named k times is drawn k times
+#     as often, and a push cell walks its own push.
+#   STAGE1B_DURATIONS="NAME=SECONDS,..." sets cell_durations: the named cells walk that long,
+#     capped at the same speed (engine_cap scales with the walk), the others STAGE1B_SET's.
+#   STAGE1B_RESAMPLE=K scores each candidate over the same K evaluation seeds (--resample K
+#     --common-seeds run; STAGE1B_BUDGET counts evaluations, so it tries BUDGET / K candidates).
+#   STAGE1B_COMMON=run|batch: --common-seeds; batch gives each batch (a CMA-ES generation) the
+#     same fresh seeds, so the candidates ranked against each other meet the same world.
+#   STAGE1B_SCREEN=1 (cmaes with engine_score=worst): --screen, each candidate walks MuJoCo and
+#     ODE first and PyBullet only where it can still rank in CMA-ES's better half, which
+#     changes no step of CMA-ES and buys more candidates (benchmarks/screening.py).
+# Time
+#   DEADLINE=SECONDS (pool) fits the search to a wall-clock limit: each stage 1b gets an even
+#     share of the time left to it, less LATER_STAGES, among the pipelines still to run.
+#   LATER_STAGES=SECONDS|auto (390) is the time kept for the re-check, race and table; auto
+#     sets it from the basin race's seconds per episode (the same 15 s walks on the same
+#     engines), times the later stages' episodes, a fifth more and 20 s (they took 0.92-1.09
+#     times the basin race's time per episode in designs H and R, so a fixed time starves
+#     stage 1b on a fast day and overruns on a slow one).
+# Later stages
+#   TOP=K (3): the re-check takes each final stage 1b's K best; RECHECK_LAST=N only among its
+#     N latest candidates (where scores tie at the cap, the K best are otherwise the earliest).
+#   RACE_SEEDS=N (10) seeds per cell in the race; RACE_FELL=RATE (0.02) its fall bound (at 0.02
+#     a gait falling in 4 % misses as much as one that stands still).
+#   FINALS="RUN ..." runs only the later stages, on robust-walk-sSEED.db already here, from
+#     these final stage-1b runs (FINALS=8 for one pipeline after seven stage-1 runs): another
+#     choice among what a search made, paired with its own. It rewrites the later stages'
+#     files: run it in a copy of the search's folder.
+#
+# Searches logged before a knob existed ran this script at these commits: the second 9d03e62,
+# the third abce00d, the fourth ff6956d, the fifth 3c8db53, the sixth 6e1fe34, the seventh
+# 3c42de4, the ninth 5ed7043, the tenth 208ebc5, the eleventh 17bbed3, the twelfth and the
+# thirteenth's pilot f1b7010 (before d228dc7, where nao-walk charges the flight penalty past
+# engine_cap). Designs up to L ran before commit 2144e1a, where nao-walk stopped letting a fall
+# in the first 2 s of walking escape the flight penalty.
 set -euo pipefail
 seed=${1:?usage: [DEADLINE=SECONDS LATER_STAGES=SECONDS|auto STAGE1_TIME=SECONDS STAGE1_OPTIMIZER=NAME STAGE1_BATCH=B BASIN_FELL=RATE RACE_FELL=RATE RACE_SEEDS=N STAGE1B_BUDGET=N STAGE1B_OPTIMIZER=NAME STAGE1B_BATCH=B STAGE1B_SCREEN=1 PIPELINES=N STAGE1_RUNS=R STAGE1B_RESAMPLE=K STAGE1B_COMMON=run|batch TOP=K RECHECK_LAST=N STAGE1_ENGINE=E STAGE1_SET="NAME=VALUE ..." STAGE1B_START=all|raced|pool STAGE1B_SET="NAME=VALUE ..." STAGE1B_CELLS="NAME,..." STAGE1B_DURATIONS="NAME=SECONDS,..." FLAT_BEST=METRES FLAT_FELL=SHARE TRIALS=N TRIAL_TIME=SECONDS FINALS="RUN ..."] robust-walk-search.sh SEED}
 stage1b_budget=${STAGE1B_BUDGET:-600}

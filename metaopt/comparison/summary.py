@@ -9,7 +9,6 @@ from collections.abc import Callable, Iterable, Sequence
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.stats import mannwhitneyu
 
 from metaopt.comparison.experiment import Cell, Experiment
 from metaopt.params import resolve
@@ -137,6 +136,8 @@ def rank_sum_p(a: Sequence[float], b: Sequence[float]) -> float | None:
     """Two-sided Mann-Whitney U test p-value of two samples (None when one is empty)."""
     if not a or not b:
         return None
+    from scipy.stats import mannwhitneyu  # here: scipy.stats costs every CLI call a second
+
     return float(mannwhitneyu(a, b, alternative="two-sided").pvalue)
 
 

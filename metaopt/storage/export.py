@@ -27,9 +27,38 @@ def finite_json(value: Any) -> Any:
 
 
 def dump_json(value: Any, out: TextIO) -> None:
-    """``value`` as strict JSON (see finite_json), indented, with a final newline."""
-    json.dump(finite_json(value), out, indent=1, allow_nan=False)
+    """``value`` as strict JSON (see finite_json) with a final newline: objects indented one
+    space a level, and each element of a list on a line of its own (a run's evaluations one per
+    line, written by json's C encoder, which indenting everything would bypass)."""
+    _write_json(value, out, "")
     out.write("\n")
+
+
+def _write_json(value: Any, out: TextIO, indent: str) -> None:
+    """One value of dump_json's layout at ``indent``."""
+    inner = indent + " "
+    if isinstance(value, dict) and value:
+        out.write("{\n")
+        for position, (key, item) in enumerate(value.items()):
+            if position:
+                out.write(",\n")
+            out.write(f"{inner}{json.dumps(str(key))}: ")
+            _write_json(item, out, inner)
+        out.write(f"\n{indent}}}")
+    elif isinstance(value, list | tuple) and value:
+        rows = ",\n".join(inner + strict_json(item) for item in value)
+        out.write(f"[\n{rows}\n{indent}]")
+    else:
+        out.write(strict_json(value))
+
+
+def strict_json(value: Any) -> str:
+    """``value`` as one line of strict JSON (see finite_json); finite_json's walk is paid only
+    by a value that holds an infinite or NaN float."""
+    try:
+        return json.dumps(value, allow_nan=False)
+    except ValueError:  # a float out of JSON's range somewhere in it
+        return json.dumps(finite_json(value), allow_nan=False)
 
 
 def export_run(store: RunStore, run_id: int | str, fmt: str, out: TextIO) -> int:
