@@ -1,7 +1,14 @@
 """metaopt: metaheuristic optimization with plugins."""
 
 from metaopt.api import History, Result, create_optimizer, maximize, minimize
-from metaopt.errors import ConfigError, EvaluationError, MetaoptError, RunFailed, StoreError
+from metaopt.errors import (
+    ConfigError,
+    EvaluationError,
+    MetaoptError,
+    RunFailed,
+    SettingWarning,
+    StoreError,
+)
 from metaopt.hookspecs import hookimpl
 from metaopt.optimizer import (
     Optimizer,
@@ -31,6 +38,7 @@ __all__ = [
     "Result",
     "RunFailed",
     "Sense",
+    "SettingWarning",
     "Space",
     "StoreError",
     "Variable",

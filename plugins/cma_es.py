@@ -123,7 +123,7 @@ class CMAES(Optimizer):
         """A run no longer than the first, uniform generation never uses the distribution."""
         if candidates <= self.constants.population:
             return (
-                f"cmaes: {candidates} candidates are no more than its first generation "
+                f"{candidates} candidates are no more than its first generation "
                 f"({self.constants.population} uniform random points); give a budget of "
                 "several generations"
             )

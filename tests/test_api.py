@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import time
+import warnings
 
 import numpy as np
 import pytest
@@ -81,6 +82,23 @@ def test_a_refused_run_leaves_no_store_behind(tmp_path, optimizer, params, messa
     with pytest.raises(metaopt.ConfigError, match=message):
         metaopt.minimize(sphere, [(-1.0, 1.0)], optimizer, budget=50, store=db, **params)
     assert list(tmp_path.iterdir()) == []
+
+
+def test_a_run_its_store_refuses_gives_the_error_alone_and_a_run_that_starts_its_warning(
+    tmp_path,
+):
+    """A setting's warning (a budget that only fills HS's memory) comes once nothing refuses
+    the run: not before the store's error, and once when it runs."""
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        with pytest.raises(metaopt.StoreError, match="cannot use"):
+            metaopt.minimize(
+                sphere, [(-1.0, 1.0)], budget=5, seed=1, store=tmp_path / "no" / "a.db"
+            )
+    assert caught == []
+    with pytest.warns(metaopt.SettingWarning, match=r"^hs: hms 20 is not smaller") as warned:
+        metaopt.minimize(sphere, [(-1.0, 1.0)], budget=5, seed=1, store=tmp_path / "a.db")
+    assert len(warned) == 1
 
 
 def test_failed_evaluations_count_and_a_function_that_always_fails_is_reported():

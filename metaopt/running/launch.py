@@ -39,12 +39,12 @@ def run(
     Ctrl-C or SIGTERM marks the run 'interrupted' and raises RunInterrupted.
     """
     prepared = _prepared(spec, optimizer_info, problem_info)
-    spec, problem = prepared.spec, prepared.problem
     try:
         with _opened(store) as opened:
+            _warn(prepared.warnings)  # once the store opened: a refused run only says why
             return _stored_run(prepared, optimizer_info, problem_info, opened, progress, executor)
     finally:
-        problem.close()
+        prepared.problem.close()
 
 
 @contextmanager
@@ -92,7 +92,9 @@ def check_run(spec: RunSpec, optimizer_info: OptimizerInfo, problem_info: Proble
     """Make every check run() makes before it stores anything (settings, the problem and the
     optimizer built from them, the warm start, the mode), and nothing else: ConfigError on the
     first bad one, so that a long script can refuse a later run's settings before it starts."""
-    _prepared(spec, optimizer_info, problem_info).problem.close()
+    prepared = _prepared(spec, optimizer_info, problem_info)
+    prepared.problem.close()
+    _warn(prepared.warnings)
 
 
 @dataclass(frozen=True)
@@ -104,11 +106,19 @@ class _Prepared:
     optimizer: Optimizer
     optimizer_params: dict[str, Any]
     problem_params: dict[str, Any]
+    warnings: tuple[str, ...]  # settings that pass but are hardly what was meant
+
+
+def _warn(notes: tuple[str, ...]) -> None:
+    """Each of a prepared run's warnings, as a SettingWarning from the caller of run()."""
+    for note in notes:
+        warnings.warn(note, SettingWarning, stacklevel=3)
 
 
 def _prepared(spec: RunSpec, optimizer_info: OptimizerInfo, problem_info: ProblemInfo) -> _Prepared:
     """The spec checked, and the problem and optimizer built from it (ConfigError on bad input;
-    the problem is closed when a later check fails)."""
+    the problem is closed when a later check fails), with the warnings the settings deserve,
+    to be given only once nothing refuses the run."""
     if spec.budget < 1:
         raise ConfigError(f"budget must be a positive number of evaluations, got {spec.budget}")
     spec.settings.check(spec.budget)
@@ -121,16 +131,15 @@ def _prepared(spec: RunSpec, optimizer_info: OptimizerInfo, problem_info: Proble
     problem = problem_info.factory(**problem_params)
     try:
         optimizer = optimizer_info.factory(problem.space, spec.seed, **optimizer_params)
+        notes = []
         unfit = optimizer.budget_warning(spec.budget // spec.settings.resample)
         if unfit is not None:
-            warnings.warn(f"{optimizer_info.name}: {unfit}", SettingWarning, stacklevel=3)
+            notes.append(f"{optimizer_info.name}: {unfit}")
         if spec.settings.common_seeds == "batch" and spec.settings.batch_size(optimizer) == 1:
-            warnings.warn(
+            notes.append(
                 f"{optimizer_info.name} asks one candidate per batch: with common seeds per "
                 "batch every candidate still meets seeds of its own; give --batch N for N "
-                "candidates to share them, or use --common-seeds run",
-                SettingWarning,
-                stacklevel=3,
+                "candidates to share them, or use --common-seeds run"
             )
         spec = _with_start_points(spec, problem.space, optimizer)
         if spec.settings.screen:
@@ -143,7 +152,7 @@ def _prepared(spec: RunSpec, optimizer_info: OptimizerInfo, problem_info: Proble
     except BaseException:
         problem.close()
         raise
-    return _Prepared(spec, problem, optimizer, optimizer_params, problem_params)
+    return _Prepared(spec, problem, optimizer, optimizer_params, problem_params, tuple(notes))
 
 
 def _check_screening(
