@@ -68,11 +68,12 @@ def as_space(bounds: Bounds) -> Space:
     upper)}; ConfigError saying which form is accepted otherwise."""
     if isinstance(bounds, Space):
         return bounds
-    if isinstance(bounds, Mapping):
-        pairs, names = list(bounds.values()), list(bounds)
-    else:
-        pairs, names = list(bounds), [f"x{i}" for i in range(len(bounds))]
     try:
+        if isinstance(bounds, Mapping):
+            pairs, names = list(bounds.values()), list(bounds)
+        else:
+            pairs = list(bounds)
+            names = [f"x{i}" for i in range(len(pairs))]
         variables = [Variable(str(n), float(lo), float(hi)) for n, (lo, hi) in zip(names, pairs)]
     except (TypeError, ValueError):
         raise ConfigError(

@@ -61,10 +61,11 @@ def create_plugin(kind: str, name: str, directory: Path | None = None) -> Path:
         raise ConfigError(f"unknown plugin kind {kind!r}; accepted: {', '.join(KINDS)}")
     names = plugin_names(name)
     plugins = registry()
+    taken = "optimizer" if name in plugins.optimizers else "problem"
     if name in plugins.optimizers or name in plugins.problems:
         raise ConfigError(
-            f"an installed plugin already provides {name!r} "
-            f"({plugins.source(kind, name)}); choose another name"
+            f"an installed plugin already provides the {taken} {name!r} "
+            f"({plugins.source(taken, name)}); choose another name"
         )
     if importlib.util.find_spec(names.package) is not None:
         raise ConfigError(f"a module {names.package!r} is already importable; choose another name")

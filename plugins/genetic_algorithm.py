@@ -144,9 +144,10 @@ class GeneticAlgorithm(Optimizer):
         fine_share: float,
     ) -> None:
         super().__init__(space, seed)
-        if elites >= population:
+        if survival == "elites" and elites >= population:  # plus survival keeps no elites
             raise ConfigError(
-                f"ga parameter 'elites' = {elites} must be below 'population' = {population}"
+                f"ga parameter 'elites' = {elites} must be below 'population' = {population} "
+                "with survival elites"
             )
         if tournament > population:
             raise ConfigError(

@@ -27,7 +27,9 @@ Out-of-bound values are repaired by ``Space.repair`` (``repair``: clip or reflec
 
 Restarts (``restart_after``, off by default): once that many harmonies in a row have been told
 without improving the memory's best, the memory is emptied and refilled with new random
-points, as at the start, and the ``ihs``/``ghs`` schedules start again over the budget left. A
+points, as at the start, and the ``ihs``/``ghs`` schedules start again over the budget left.
+Harmonies asked before the restart and told after it (the rest of a batch, or those in flight
+in async mode) are left out of the new memory: they were improvised from the one emptied. A
 memory that has converged on a poor region (a robot that stands still) otherwise stays there
 for the rest of the run; the run keeps its best evaluation whatever the memory forgets.
 
@@ -144,6 +146,9 @@ class HarmonySearch(Optimizer):
         # Harmonies told in a row without improving the memory's best, and restarts so far.
         self._stalled = 0
         self._restarts = 0
+        # After a restart, the random points asked since, the only candidates that refill the
+        # memory; None before the first restart (a warm start's points fill it as asked ones do).
+        self._refill: list[np.ndarray] | None = None
         # The ihs/ghs schedules run over schedule_length improvisations from schedule_start.
         self._schedule_start = 0
         self._schedule_length = self._run_schedule_length()
@@ -224,7 +229,10 @@ class HarmonySearch(Optimizer):
     def ask(self, n: int) -> np.ndarray:
         """Random points while the memory fills, then n harmonies improvised from the memory."""
         if self._filled < self.hms:
-            return self.space.sample(self.rng, n)
+            points = self.space.sample(self.rng, n)
+            if self._refill is not None:
+                self._refill.extend(points.copy())
+            return points
         harmonies = self._improvise(n)
         while len(harmonies) < n:
             harmonies = np.concatenate([harmonies, self._improvise(n - len(harmonies))])
@@ -296,7 +304,8 @@ class HarmonySearch(Optimizer):
         for index, fitness in enumerate(fitness_values):
             self._told += 1
             if self._filled < self.hms:
-                self._fill(candidates[index], fitness)
+                if self._asked_since_restart(candidates[index]):
+                    self._fill(candidates[index], fitness)
                 continue
             if self.restart_after:
                 self._stalled = 0 if fitness < self._fitness[self._best] else self._stalled + 1
@@ -309,12 +318,24 @@ class HarmonySearch(Optimizer):
         """Empty the memory (it refills with random points) and restart the schedules over the
         budget left; the current block of choices is dropped, its schedule values being stale."""
         self._restarts += 1
+        self._refill = []
         self._filled = self._stalled = 0
         self._fitness[:] = np.inf
         self._schedule_start = self._improvisations
         self._schedule_length = max(self.budget - self._told - self.hms, 1)
         self._drop_block()
         self._block_rng_state = None
+
+    def _asked_since_restart(self, candidate: np.ndarray) -> bool:
+        """Whether a told candidate may refill the memory: any before the first restart, after
+        one only the random points asked since (each once)."""
+        if self._refill is None:
+            return True
+        for position, point in enumerate(self._refill):
+            if np.array_equal(point, candidate):
+                del self._refill[position]
+                return True
+        return False
 
     def _drop_block(self) -> None:
         """Forget the current block of choices and the harmonies built from it."""
@@ -329,6 +350,8 @@ class HarmonySearch(Optimizer):
         self._fitness[self._filled] = math.inf if math.isnan(fitness) else fitness
         self._filled += 1
         if self._filled == self.hms:
+            if self._refill is not None:
+                self._refill = []  # points asked beyond the memory's size refill nothing
             self._best = int(self._fitness.argmin())
             self._update_worst()
             self._copy_best()
@@ -364,6 +387,7 @@ class HarmonySearch(Optimizer):
             "told": self._told,
             "stalled": self._stalled,
             "restarts": self._restarts,
+            "refill": None if self._refill is None else [p.tolist() for p in self._refill],
             "schedule": [self._schedule_start, self._schedule_length],
             "block_rng": self._block_rng_state,
             "block_position": self._position,
@@ -389,6 +413,8 @@ class HarmonySearch(Optimizer):
         self._told = state.get("told", filled + self._improvisations)
         self._stalled = state.get("stalled", 0)
         self._restarts = state.get("restarts", 0)
+        refill = state.get("refill")  # states saved before it: any told candidate refills
+        self._refill = None if refill is None else [np.array(p, dtype=float) for p in refill]
         self._schedule_start, self._schedule_length = state.get(
             "schedule", (0, self._run_schedule_length())
         )

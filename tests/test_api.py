@@ -136,6 +136,10 @@ def test_create_optimizer_fills_defaults_validates_and_passes_the_budget():
         ("hs", [(0, 1)], {"hmcr": 2.0}, r"expected a float in \[0, 1\]"),
         ("hs", [(1, 0)], {}, "lower bound 1.0 >= upper bound 0.0"),
         ("hs", [1, 2], {}, r"sequence of \(lower, upper\) pairs"),
+        ("hs", 5, {}, r"sequence of \(lower, upper\) pairs"),
+        ("hs", None, {}, r"sequence of \(lower, upper\) pairs"),
+        # a generator of pairs is read once, as bounds: what is refused is the hmcr
+        ("hs", ((0, 1) for _ in range(2)), {"hmcr": 2.0}, r"expected a float in \[0, 1\]"),
     ],
 )
 def test_bad_input_is_one_clear_metaopt_error(name, bounds, params, message):

@@ -7,6 +7,7 @@ from __future__ import annotations
 import csv
 import io
 import json
+import multiprocessing
 import os
 import signal
 import sqlite3
@@ -463,3 +464,43 @@ def test_infinite_settings_export_as_strict_json_that_reads_back(tmp_path):
     for params in (exported["run"]["problem_params"], shown["problem_params"], in_csv):
         assert params["friction"] == "inf" and float(params["friction"]) == float("inf")
     assert len(exported["evaluations"]) == 2
+
+
+def _refused_in_process(*args: str) -> str:
+    """The one error line of a command refused (exit 2) in this process, checked to have left
+    none of the worker processes it may have started alive."""
+    before = set(multiprocessing.active_children())
+    done = CliRunner().invoke(main, list(args))
+    assert done.exit_code == 2, (done.output, done.exception)
+    assert set(multiprocessing.active_children()) - before == set()  # every worker stopped
+    lines = done.output.strip().splitlines()
+    assert len(lines) == 1 and lines[0].startswith("Error: "), done.output
+    return lines[0]
+
+
+def test_a_run_refused_after_its_workers_started_stops_them(tmp_path):
+    """`run` and `resume` checks that only the built optimizer or the stored run can make
+    (CMA-ES is generational; the run already finished) leave no worker process behind."""
+    db = str(tmp_path / "metaopt.db")
+    workers = ("--executor", "process", "--workers", "2", "--db", db)
+    line = _refused_in_process("run", "-o", "cmaes", "-p", "sphere", "--mode", "async", *workers)
+    assert "'cmaes' is generational" in line
+    done = CliRunner().invoke(main, ["run", "-o", "hs", "-p", "sphere", "--budget", "4",
+                                     "--db", db])  # fmt: skip
+    assert done.exit_code == 0, (done.output, done.exception)
+    assert "already finished" in _refused_in_process("resume", "1", *workers)
+    line = _refused_in_process("resume", "1", "--budget", "3", *workers)
+    assert "budget must be more than the 4 evaluations" in line
+
+
+def test_a_run_the_built_optimizer_refuses_starts_no_dask_cluster(tmp_path):
+    """Refused before any executor is built: one error line, not the line of a Dask
+    cluster's dashboard started in vain, and no store."""
+    done = metaopt_cli("run", "-o", "cmaes", "-p", "sphere", "--mode", "async", "--executor",
+                       "dask", "--workers", "1", cwd=tmp_path)  # fmt: skip
+    one_error_line(done, "'cmaes' is generational", "--mode sync")
+    assert not (tmp_path / "metaopt.db").exists()
+    finished = metaopt_cli("run", "-o", "hs", "-p", "sphere", "--budget", "4", cwd=tmp_path)
+    assert finished.returncode == 0, finished.stderr
+    done = metaopt_cli("resume", "1", "--executor", "dask", "--workers", "1", cwd=tmp_path)
+    one_error_line(done, "already finished")

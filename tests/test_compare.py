@@ -228,6 +228,44 @@ def test_success_rate_and_evaluations_to_target_on_a_constructed_case(tmp_path: 
     assert row["wall_time_median"] == 2.0
 
 
+def test_evaluations_to_target_of_a_resampled_run_counts_whole_candidates(
+    tmp_path: Path,
+) -> None:
+    """Resampled twice, target 1: a lucky first sample (0.5 at evaluation 1) does not reach it
+    for a candidate whose mean is 2.75; the third candidate's mean 0.85 does, after 6."""
+    samples = [[0.5, 5.0], [3.0, 3.0], [0.8, 0.9], [0.1, 0.2]]
+    experiment = _flags_experiment(optimizers=["random"], seeds=1, budget=8, target=1.0)
+    (cell,) = experiment.cells()
+    with ExperimentStore(tmp_path / "made.db") as store:
+        with store.joining(experiment.name, cell.key, 1):
+            run_id = store.create_run(
+                optimizer="random", optimizer_params={}, problem="sphere",
+                problem_params={"dim": 3}, seed=1, budget=8, sense="minimize", space=[],
+                settings=vars(RunSettings(resample=2)), versions={},
+            )  # fmt: skip
+        for number, values in enumerate(samples):
+            for sample, fitness in enumerate(values):
+                index = 2 * number + sample
+                store.add_evaluation(run_id, index, number, np.zeros(3), fitness, {}, None, 0, 0.0)
+        store.finish_run(run_id, "finished", wall_time=1.0)
+        (row,) = compare(experiment, store, registry()).rows
+    assert row["success_rate"] == 1.0
+    assert row["evaluations_to_target"] == 6
+    assert row["fitness_median"] == pytest.approx(0.15)
+
+
+def test_metric_rates_and_medians_follow_the_recent_figures_rule() -> None:
+    """One rule for a flag and a metric's figure: compare's tables use reporting.recent's."""
+    from metaopt.comparison import summary, transfer
+    from metaopt.reporting import recent
+
+    assert summary.is_flag is recent.is_flag and transfer.is_flag is recent.is_flag
+    assert summary.metric_value is recent.metric_value
+    assert summary.center([0.0, 1.0, 1.0, 1.0], True) == 0.75
+    assert summary.center([3.0, 1.0, 2.0, 10.0], False) == 2.5
+    assert summary.center([], False) is None
+
+
 def test_reaching_the_target_follows_the_sense() -> None:
     assert ProblemTraits(Sense.MINIMIZE, ()).reaches(0.5, 1.0)
     assert not ProblemTraits(Sense.MINIMIZE, ()).reaches(1.5, 1.0)
@@ -270,6 +308,25 @@ def test_an_edited_experiment_under_the_same_name_is_refused(tmp_path: Path) -> 
         _run(_flags_experiment(seeds=1, budget=50, name="same"), store)
         with pytest.raises(ConfigError, match="budget 50 -> 60"):
             _run(_flags_experiment(seeds=1, budget=60, name="same"), store)
+
+
+def test_a_warm_started_experiment_run_again_reuses_its_runs(tmp_path: Path) -> None:
+    """A warm start without start_points is stored with the optimizer's initial population
+    filled in: the next compare skips those runs, and still refuses other start points."""
+    text = (
+        'name = "warm"\nproblem = "sphere"\nseeds = 2\n[problem_settings]\ndim = 2\n'
+        '[[optimizers]]\nname = "random"\nbudget = 30\nsettings = { start = [0.1, 0.2]%s }\n'
+    )
+    (tmp_path / "warm.toml").write_text(text % "")
+    experiment = load_experiment(tmp_path / "warm.toml", registry())
+    with ExperimentStore(tmp_path / "w.db") as store:
+        assert [d.action for d in _run(experiment, store)] == ["ran"] * 2
+        assert {r.settings["start_points"] for r in store.runs()} == {100}  # random's batch
+        assert [d.action for d in _run(experiment, store)] == ["skipped"] * 2
+        (tmp_path / "warm.toml").write_text(text % ", start_points = 5")
+        edited = load_experiment(tmp_path / "warm.toml", registry())
+        with pytest.raises(ConfigError, match=r"'start_points': 100, .* -> .*'start_points': 5,"):
+            _run(edited, store)
 
 
 @pytest.mark.parametrize(

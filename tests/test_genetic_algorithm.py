@@ -369,8 +369,22 @@ def test_failed_evaluations_are_never_preferred():
 
 
 @pytest.mark.parametrize(
-    "params", [{"population": 10, "elites": 10}, {"population": 10, "tournament": 11}]
+    "params",
+    [
+        {"population": 10, "elites": 10, "survival": "elites"},
+        {"population": 10, "tournament": 11},
+    ],
 )
 def test_inconsistent_sizes_are_config_errors(params):
     with pytest.raises(ConfigError, match="population"):
         build(SPHERE_10, 0, **params)
+
+
+def test_the_smallest_declared_population_runs_with_plus_survival():
+    """population 2, the declared minimum, with the default elites (2), which plus survival
+    does not use: it breeds and keeps the best two of parents and offspring."""
+    optimizer = build(SPHERE_10, 0, population=2)
+    for _ in range(3):
+        x = optimizer.ask(2)
+        optimizer.tell(x, (x**2).sum(axis=1))
+    assert optimizer.generations == 3 and len(optimizer.members) == 2

@@ -337,6 +337,32 @@ def test_restart_refills_the_memory_after_restart_after_stalled_harmonies():
     assert not in_column(harmonies, memory).any()
 
 
+def test_harmonies_told_after_a_restart_from_the_old_memory_do_not_refill_the_new_one():
+    """A restart in the middle of a told batch (or with harmonies in flight): the rest of the
+    batch was improvised from the memory just emptied, and is left out of the new one, which
+    refills with the random points asked after the restart, as at the start."""
+    space = Space.from_bounds([0.0] * 3, [1.0] * 3)
+    optimizer = build(space, seed=2, hms=3, restart_after=2, budget=1000, pitch_adjust="ihs")
+    fill(optimizer, space.sample(np.random.default_rng(0), 3), np.array([0.0, 1.0, 2.0]))
+    old = optimizer.ask(6)
+    optimizer.tell(old, np.full(6, 5.0))  # the 2nd stalls it: restart; 4 more told after
+    assert optimizer.restarts == 1 and len(optimizer.harmony_memory) == 0
+    fresh = optimizer.ask(5)
+    assert not in_column(fresh, old).any()
+    optimizer.tell(fresh[:3], np.arange(3.0))
+    np.testing.assert_array_equal(optimizer.harmony_memory, fresh[:3])
+    # saved and restored on the way, the same holds
+    again = build(space, seed=2, hms=3, restart_after=2, budget=1000, pitch_adjust="ihs")
+    fill(again, space.sample(np.random.default_rng(0), 3), np.array([0.0, 1.0, 2.0]))
+    again.tell(again.ask(6)[:2], np.full(2, 5.0))  # restart with 4 still in flight
+    in_flight = old[2:]
+    resumed = build(space, seed=9, hms=3, restart_after=2, budget=1000, pitch_adjust="ihs")
+    resumed.load_state_dict(json.loads(json.dumps(again.state_dict())))
+    refill = resumed.ask(3)
+    resumed.tell(np.concatenate([in_flight, refill]), np.arange(7.0))
+    np.testing.assert_array_equal(resumed.harmony_memory, refill)
+
+
 def test_no_restart_by_default_and_restarts_escape_a_stalled_memory():
     """A trap: fitness 0 on most of the box, a narrow well of fitness -1 elsewhere.
     Without restarts a memory filled on the plateau stays there; with them it finds the well."""

@@ -29,9 +29,11 @@ from metaopt.assessment.robustness import (
     whole_table,
     write_ranking,
 )
-from metaopt.executors.base import SerialExecutor
+from metaopt.executors import base as executors_base
+from metaopt.executors.base import SerialExecutor, problem_key
 from metaopt.params import resolve
 from metaopt.plugins import registry
+from metaopt.reporting.display import goal_verdict
 from metaopt.storage.run_store import RunStore
 from metaopt_problems.nao_walk.robustness import NOMINAL_WORLD, STANDARD_TABLE
 from metaopt_problems.nao_walk.stored_gaits import gait_vector, load_gait, stored_gait_names
@@ -177,6 +179,31 @@ def test_select_cells_keeps_table_order_and_refuses_unknown_names() -> None:
         select_cells(STANDARD_TABLE, ["gravity"])
 
 
+def test_select_cells_keeps_every_other_field_of_the_table() -> None:
+    """--cells keeps the table's only_when (and common, metrics): a goal on time_to_fall built
+    from the selected table holds for a gait that never fell, as on the whole table."""
+    table = select_cells(STANDARD_TABLE, ["nominal"])
+    assert table == replace(STANDARD_TABLE, cells=STANDARD_TABLE.cells[:1])
+    assert table.only_when == {"time_to_fall": "fell"}
+    goal = parse_goal("time_to_fall>=5", table.metrics, table.version, table.only_when)
+    assert goal.only_when == "fell"
+    assert goal.margin(CellResult("all", "mujoco", [{"speed": 0.5, "fell": 0.0}] * 2, 0)) > 0
+
+
+def test_evaluate_closes_the_problems_it_built_in_this_process() -> None:
+    """With the serial executor the episodes' problems are built here and cached per (cell,
+    engine); evaluate releases them at its end rather than holding engines for the command."""
+    info = registry().problem("nao-walk")
+    stored, _ = find_candidate("hs_walk", registry().problems, "none.db")
+    candidate = replace(stored, params={**stored.params, "duration": 1.0, "lock": 0.2})
+    plan = tasks(candidate, info, select_cells(STANDARD_TABLE, ["nominal"]), ("mujoco",), 1, 0)
+    built = {problem_key(task.factory, task.params) for _, _, task in plan.tasks}
+    with SerialExecutor() as executor:
+        ((result,),) = evaluate([plan], executor)
+    assert len(result.samples) == 1 and result.failed == 0
+    assert not built & set(executors_base._problems)
+
+
 def test_find_candidate_takes_stored_gaits_by_name() -> None:
     candidate, info = find_candidate("stride_mujoco", registry().problems, "none.db")
     assert info.name == "nao-walk" and candidate.params["controller"] == "stride"
@@ -257,6 +284,25 @@ def test_a_goal_on_the_time_to_fall_holds_for_a_gait_that_never_fell() -> None:
     unmeasured = parse_goal("flight<=0.05", STANDARD_TABLE.metrics, STANDARD_TABLE.version,
                             STANDARD_TABLE.only_when)  # fmt: skip
     assert unmeasured.only_when is None and unmeasured.margin(steady) == -math.inf
+
+
+def test_the_goal_verdict_judges_a_time_to_fall_goal_as_the_ranking_does() -> None:
+    """The printed verdict counts a goal's only_when rate like Goal.margin: a gait that never
+    fell meets time_to_fall>=5 (no '(nan)' miss), one whose falls came early misses it."""
+    goals = [
+        parse_goal(text, STANDARD_TABLE.metrics, STANDARD_TABLE.version, STANDARD_TABLE.only_when)
+        for text in ("time_to_fall>=5", "speed>=0.4")
+    ]
+    steady = CellResult("whole table", "mujoco", [{"speed": 0.5, "fell": 0.0}] * 4, 0)
+    falling = CellResult("whole table", "ode", [
+        {"speed": 0.5, "fell": 1.0, "time_to_fall": t} for t in (2.0, 3.0, 4.0)
+    ] + [{"speed": 0.5, "fell": 0.0}], 0)  # fmt: skip
+    assert [g.margin(steady) > 0 for g in goals] == [True, True]
+    assert goal_verdict("g", [steady, falling], goals).splitlines() == [
+        "g against the goals time_to_fall>=5, speed>=0.4:",
+        "  mujoco: meets all",
+        "  ode: misses time_to_fall>=5 (3)",
+    ]
 
 
 def test_robustness_command_refuses_bad_input_in_one_line(tmp_path: Path) -> None:

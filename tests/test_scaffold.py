@@ -55,7 +55,8 @@ def test_new_refuses_an_existing_directory_without_writing(tmp_path: Path):
         ("es-", "is not accepted"),
         ("2es", "is not accepted"),
         ("class", "is a Python keyword"),
-        ("hs", "an installed plugin already provides 'hs'"),
+        ("hs", r"already provides the optimizer 'hs' \(metaopt\)"),
+        ("sphere", r"already provides the problem 'sphere' \(metaopt\)"),  # the other kind
         ("plugins", "module 'metaopt_plugins' is already importable"),
     ],
 )

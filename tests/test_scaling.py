@@ -7,13 +7,17 @@ import signal
 import sqlite3
 import subprocess
 import sys
+import threading
 import time
 import urllib.request
 import warnings
 from pathlib import Path
 
+import numpy as np
 import pytest
 
+from metaopt.executors.base import EvaluationTask
+from metaopt.params import resolve
 from metaopt.plugins import registry
 from metaopt.running import RunSettings, RunSpec, run
 from metaopt.storage.run_store import RunStore
@@ -299,3 +303,54 @@ def test_an_unreachable_scheduler_is_one_clear_error(tmp_path):
     assert done.returncode == 2
     assert f"cannot reach the Dask scheduler at {address}" in done.stderr
     assert "Traceback" not in done.stderr
+
+
+def _sphere_tasks(count: int, time_limit: float | None) -> list[EvaluationTask]:
+    """count evaluations of the 2-D sphere (microseconds each), with this time limit."""
+    info = registry().problem("sphere")
+    params = resolve(info.params, {}, "sphere")
+    return [
+        EvaluationTask(i, np.full(2, i / count), i, info.factory, params, time_limit=time_limit)
+        for i in range(count)
+    ]
+
+
+def _timer_threads() -> int:
+    return sum(isinstance(thread, threading.Timer) for thread in threading.enumerate())
+
+
+def test_dask_time_limits_leave_no_timer_behind_a_settled_evaluation():
+    """Each evaluation's time-limit timer goes when it settles: fast evaluations under a long
+    limit do not pile up a sleeping thread each until the run ends."""
+    executor = registry().executor("dask").factory(2, None)
+    try:
+        before = _timer_threads()
+        futures = [executor.submit(task) for task in _sphere_tasks(200, time_limit=60.0)]
+        outcomes = [future.result(timeout=120) for future in futures]
+        assert all(outcome.error is None for outcome in outcomes)
+        deadline = time.monotonic() + 10  # a cancelled timer's thread ends at once
+        while time.monotonic() < deadline and _timer_threads() > before:
+            time.sleep(0.05)
+        assert _timer_threads() == before
+    finally:
+        executor.shutdown()
+    executor.shutdown()  # the run's, then its caller's: the second does nothing
+
+
+def _open_descriptors() -> int:
+    return len(os.listdir("/proc/self/fd"))
+
+
+@pytest.mark.skipif(not os.path.isdir("/proc/self/fd"), reason="counts /proc/self/fd")
+def test_process_workers_shut_down_leave_no_pipe_open():
+    """Shutting the worker processes down closes every pipe to them (and the manager's wake
+    pipe), not only those of workers it had to kill; a second shutdown does nothing."""
+    factory = registry().executor("process").factory
+    factory(1, None).shutdown()  # whatever multiprocessing opens once per process
+    before = _open_descriptors()
+    executor = factory(2, None)
+    futures = [executor.submit(task) for task in _sphere_tasks(4, time_limit=None)]
+    assert all(future.result(timeout=120).error is None for future in futures)
+    executor.shutdown()
+    executor.shutdown()
+    assert _open_descriptors() == before  # the executor itself is still referenced

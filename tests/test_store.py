@@ -1,5 +1,6 @@
 import sqlite3
 import time
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -70,6 +71,19 @@ def test_foreign_files_are_refused_and_left_untouched(tmp_path):
         RunStore(other)
     with pytest.raises(StoreError, match="is a directory"):
         RunStore(tmp_path)
+
+
+def test_a_refused_store_leaves_no_file_open(tmp_path):
+    """Refused after the connection opened (another program's database): it is closed."""
+    other = tmp_path / "other.db"
+    with sqlite3.connect(other) as connection:
+        connection.execute("CREATE TABLE customers (name TEXT)")
+    connection.close()
+    opened = sorted(p.name for p in Path("/proc/self/fd").iterdir())
+    for _ in range(5):
+        with pytest.raises(StoreError, match="database of something else"):
+            RunStore(other)
+    assert sorted(p.name for p in Path("/proc/self/fd").iterdir()) == opened
 
 
 def test_unknown_run_names_the_known_ones(tmp_path):
@@ -211,3 +225,67 @@ def test_the_store_path_is_refused_where_no_store_can_be_and_nothing_is_left_beh
     check_store_path(str(tmp_path / "kept.db"))  # an existing store passes, as it was
     with RunStore(tmp_path / "kept.db") as store:
         assert len(store.runs()) == 1
+
+
+def _stored_count(path) -> int:
+    """Evaluations committed in the store at path, read on a connection of its own."""
+    with sqlite3.connect(path) as reader:
+        return reader.execute("SELECT COUNT(*) FROM evaluations").fetchone()[0]
+
+
+def _write_lock(path) -> sqlite3.Connection:
+    """A second connection holding the store's write lock until it commits (another process
+    writing, for the run store: BEGIN IMMEDIATE as the store's own writes take it)."""
+    holder = sqlite3.connect(path, isolation_level=None)
+    holder.execute("BEGIN IMMEDIATE")
+    return holder
+
+
+def test_a_flush_that_fails_keeps_its_evaluations_for_the_next_one(tmp_path):
+    """A write refused (the store locked past the busy timeout) raises and loses nothing:
+    once the lock is gone the next flush stores every evaluation, in order."""
+    path = tmp_path / "locked.db"
+    store = RunStore(path, busy_timeout=0.1)
+    run_id = _new_run(store)
+    holder = _write_lock(path)
+    for i in range(20):
+        store.add_evaluation(run_id, i, i, np.full(1, i), float(i), None, None, i, 0.0)
+    with pytest.raises(sqlite3.OperationalError, match="locked"):
+        store.flush()
+    for i in range(20, 30):  # queued behind the kept ones
+        store.add_evaluation(run_id, i, i, np.full(1, i), float(i), None, None, i, 0.0)
+    holder.commit()
+    holder.close()
+    store.flush()
+    assert _stored_count(path) == 30
+    store.close()
+    with RunStore(path) as reopened:
+        assert [e.index for e in reopened.evaluations(run_id)] == list(range(30))
+
+
+def test_the_flusher_outlives_a_locked_store_and_stores_everything_after(tmp_path):
+    """The background flusher's failed writes keep their rows and it goes on: once the lock
+    is released they are committed with no explicit flush; close() raises a failure that
+    lasts, and closes the store all the same."""
+    path = tmp_path / "flusher.db"
+    store = RunStore(path, busy_timeout=0.05)
+    run_id = _new_run(store)
+    holder = _write_lock(path)
+    for i in range(10):
+        store.add_evaluation(run_id, i, i, np.zeros(1), float(i), None, None, i, 0.0)
+    time.sleep(4 * FLUSH_INTERVAL)  # several of the flusher's ticks fail meanwhile
+    assert _stored_count(path) == 0
+    holder.commit()
+    deadline = time.monotonic() + 20 * FLUSH_INTERVAL
+    while time.monotonic() < deadline and _stored_count(path) < 10:
+        time.sleep(0.05)
+    assert _stored_count(path) == 10
+
+    holder.execute("BEGIN IMMEDIATE")  # locked again, for good this time
+    store.add_evaluation(run_id, 10, 10, np.zeros(1), 10.0, None, None, 10, 0.0)
+    with pytest.raises(sqlite3.OperationalError, match="locked"):
+        store.close()
+    with pytest.raises(sqlite3.ProgrammingError):  # closed all the same
+        store.read("SELECT 1")
+    holder.rollback()
+    holder.close()

@@ -1,9 +1,9 @@
 #!/bin/bash
 # The robust-walk search of docs/robustness.md (issue 16, part 4), one seed per call:
 #   [KNOB=VALUE ...] bash docs/robustness/robust-walk-search.sh SEED
-# Every design in docs/robustness/searches.md gives its whole command; docs/robustness.md ("How
-# a search runs") walks through design V's. Every run goes to robust-walk-sSEED.db in the
-# working folder, which must not exist yet (but with FINALS).
+# Each design in docs/robustness/searches.md names its knobs or gives its command;
+# docs/robustness.md ("How a search runs") walks through design V's. Every run goes to
+# robust-walk-sSEED.db in the working folder, which must not exist yet (but with FINALS).
 #
 # The stages, as they run with no knob set (the thirteenth search: three pipelines, HS):
 #   Stage 1: for each pipeline p, STAGE1_RUNS HS runs of 1000 evaluations from random gaits of

@@ -16,7 +16,7 @@ import csv
 import math
 import statistics
 from collections.abc import Callable, Mapping, Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
@@ -24,7 +24,7 @@ import numpy as np
 
 from metaopt.assessment.candidates import Candidate
 from metaopt.errors import ConfigError
-from metaopt.executors.base import EvaluationTask, Executor, Outcome
+from metaopt.executors.base import EvaluationTask, Executor, Outcome, release_problems
 from metaopt.params import resolve
 from metaopt.problem import Problem, ProblemInfo
 from metaopt.seeding import EvaluationSeeds
@@ -179,23 +179,27 @@ def evaluate(plans: Sequence[Plan], executor: Executor) -> list[list[CellResult]
     """Each plan (what tasks() returns for one candidate) as that candidate's cells on every
     engine they run on, in table order (a cell left out on an engine has no result there).
     Every plan's tasks are submitted before any result is awaited, so the executor's workers
-    stay busy from one candidate to the next."""
-    submitted = [
-        [(cell, engine, executor.submit(task)) for cell, engine, task in plan.tasks]
-        for plan in plans
-    ]
-    tables = []
-    for futures in submitted:
-        results: dict[tuple[str, str], CellResult] = {}
-        for cell, engine, future in futures:
-            outcome: Outcome = future.result()
-            result = results.setdefault((cell, engine), CellResult(cell, engine, [], 0))
-            if outcome.fitness is None:
-                result.failed += 1
-            else:
-                result.samples.append(outcome.metrics)
-                result.fitnesses.append(outcome.fitness)
-        tables.append(list(results.values()))
+    stay busy from one candidate to the next. The problems this process built for them (an
+    in-process executor's) are closed at the end, as replay_seeds does."""
+    try:
+        submitted = [
+            [(cell, engine, executor.submit(task)) for cell, engine, task in plan.tasks]
+            for plan in plans
+        ]
+        tables = []
+        for futures in submitted:
+            results: dict[tuple[str, str], CellResult] = {}
+            for cell, engine, future in futures:
+                outcome: Outcome = future.result()
+                result = results.setdefault((cell, engine), CellResult(cell, engine, [], 0))
+                if outcome.fitness is None:
+                    result.failed += 1
+                else:
+                    result.samples.append(outcome.metrics)
+                    result.fitnesses.append(outcome.fitness)
+            tables.append(list(results.values()))
+    finally:
+        release_problems()
     return tables
 
 
@@ -464,4 +468,4 @@ def select_cells(table: PerturbationTable, names: Sequence[str] | None) -> Pertu
             + ", ".join(known)
         )
     cells = tuple(cell for cell in table.cells if cell.name in names)
-    return PerturbationTable(table.version, cells, table.metrics, table.common)
+    return replace(table, cells=cells)  # every other field (only_when too) kept

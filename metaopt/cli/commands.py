@@ -7,6 +7,7 @@ import secrets
 import sys
 import warnings
 from pathlib import Path
+from typing import Any
 
 import click
 from rich.markup import escape
@@ -47,6 +48,7 @@ from metaopt.running import (
     RunResult,
     RunSettings,
     RunSpec,
+    check_resume,
     check_run,
     resume,
     run,
@@ -71,7 +73,7 @@ class MetaoptGroup(click.Group):
     (exit 2, or its own exit_code) and click's usage errors (exit 2, without the usage dump);
     a SettingWarning is one 'Warning: ...' line."""
 
-    def main(self, *args, standalone_mode: bool = True, **kwargs):
+    def main(self, *args: Any, standalone_mode: bool = True, **kwargs: Any) -> Any:
         if not standalone_mode:
             return super().main(*args, standalone_mode=False, **kwargs)
         try:
@@ -90,7 +92,7 @@ class MetaoptGroup(click.Group):
             sys.exit(1)
         sys.exit(code if isinstance(code, int) else 0)
 
-    def invoke(self, ctx: click.Context):
+    def invoke(self, ctx: click.Context) -> Any:
         try:
             with warnings.catch_warnings():
                 warnings.showwarning = _warning_line
@@ -330,12 +332,15 @@ def run_command(
         return
     check_store_path(db_path)  # refused first; created once run() has checked the rest
     problem_info.checked_params(problem_params)  # refused before a worker starts
+    with warnings.catch_warnings():  # run() gives the settings' warnings, once
+        warnings.simplefilter("ignore", SettingWarning)
+        check_run(spec, optimizer_info, problem_info)  # refused before a worker starts
     label = f"{optimizer_name} on {problem_name}"
-    pool = build_executor(executor, workers, scheduler)
-    result = _with_progress(
-        label, db_path,
-        lambda progress: run(spec, optimizer_info, problem_info, db_path, progress, pool),
-    )  # fmt: skip
+    with build_executor(executor, workers, scheduler) as pool:  # shut down on every way out
+        result = _with_progress(
+            label, db_path,
+            lambda progress: run(spec, optimizer_info, problem_info, db_path, progress, pool),
+        )  # fmt: skip
     _print_result(result, db_path, spec.seed, pool.startup_time)
 
 
@@ -372,17 +377,19 @@ def resume_command(
     require_store(db_path)
     plugins = registry()
     with RunStore(db_path) as store:
-        record = store.run(run_id)
+        record = check_resume(run_id, store, budget)  # refused before a worker starts
         optimizer_info = plugins.optimizer(record.optimizer)
         problem_info = plugins.problem(record.problem)
-        pool = build_executor(executor, workers, scheduler)
         label = f"{record.optimizer} on {record.problem} (resumed)"
-        result = _with_progress(
-            label, db_path,
-            lambda progress: resume(
-                record.id, store, optimizer_info, problem_info, progress, pool, max_time, budget
-            ),
-        )  # fmt: skip
+        # resume() may still refuse (its settings): the workers are shut down on every way out.
+        with build_executor(executor, workers, scheduler) as pool:
+            result = _with_progress(
+                label, db_path,
+                lambda progress: resume(
+                    record.id, store, optimizer_info, problem_info, progress, pool, max_time,
+                    budget,
+                ),
+            )  # fmt: skip
         _print_result(result, db_path, record.seed, pool.startup_time)
 
 

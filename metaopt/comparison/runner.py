@@ -3,6 +3,7 @@ already finished, so re-running an experiment only does what is left."""
 
 from __future__ import annotations
 
+import contextlib
 import multiprocessing
 from collections.abc import Callable
 from concurrent.futures import Future, ProcessPoolExecutor, as_completed
@@ -13,8 +14,11 @@ from multiprocessing.synchronize import Event as EventType
 from metaopt.comparison.experiment import Cell, Experiment
 from metaopt.errors import ConfigError
 from metaopt.executors.base import EvaluationTask, Executor
+from metaopt.optimizer import OptimizerInfo
 from metaopt.plugins import Registry, registry
 from metaopt.running import Progress, RunSpec, resume, run, stop_on_sigterm
+from metaopt.running.launch import stored_settings
+from metaopt.space import Space
 from metaopt.storage.experiment_store import ExperimentStore
 from metaopt.storage.run_store import RunRecord
 
@@ -68,7 +72,7 @@ def run_experiment(
     executor: Executor | None = None
     try:
         for cell, seed in members:
-            finished = _finished_member(experiment, store, cell, seed)
+            finished = _finished_member(experiment, store, plugins, cell, seed)
             if finished is not None:
                 done.append(finished)
                 continue
@@ -103,10 +107,11 @@ def run_experiment_in_parallel(
     """
     members = [(cell, seed) for cell in experiment.cells() for seed in experiment.seeds]
     done: list[CellSeed] = []
+    plugins = registry()
     # This process keeps the one connection it has: a second one opened and closed here would
     # drop its POSIX locks on the file while the workers write (SQLite's known hazard).
     for cell, seed in members:
-        skipped = _finished_member(experiment, store, cell, seed)
+        skipped = _finished_member(experiment, store, plugins, cell, seed)
         if skipped is not None:
             done.append(skipped)
             finished(skipped, len(done), len(members))
@@ -167,14 +172,15 @@ def _run_member_in_process(experiment: Experiment, db_path: str, cell: Cell, see
 
 
 def _finished_member(
-    experiment: Experiment, store: ExperimentStore, cell: Cell, seed: int
+    experiment: Experiment, store: ExperimentStore, plugins: Registry, cell: Cell, seed: int
 ) -> CellSeed | None:
     """The member as 'skipped' when its run finished; None when it is still to run. A stored
     run made from another definition is a ConfigError."""
     record = store.member(experiment.name, cell.key, seed)
     if record is None:
         return None
-    _check_same(record, experiment.spec(cell, seed), experiment.name, cell, seed)
+    optimizer_info = plugins.optimizer(cell.optimizer.name)
+    _check_same(record, experiment.spec(cell, seed), optimizer_info, experiment.name, cell, seed)
     return CellSeed(cell, seed, record.id, "skipped") if record.status == "finished" else None
 
 
@@ -205,8 +211,16 @@ def _describe(cell: Cell, seed: int) -> str:
     return f"{cell.optimizer.label}{setting} seed {seed}"
 
 
-def _check_same(record: RunRecord, spec: RunSpec, experiment: str, cell: Cell, seed: int) -> None:
-    """ConfigError when the stored member run was made from a different definition."""
+def _check_same(
+    record: RunRecord,
+    spec: RunSpec,
+    optimizer_info: OptimizerInfo,
+    experiment: str,
+    cell: Cell,
+    seed: int,
+) -> None:
+    """ConfigError when the stored member run was made from a different definition; the spec's
+    settings are compared as its run stores them (a warm start's start points fixed)."""
     stored = {
         "optimizer": record.optimizer,
         "budget": record.budget,
@@ -217,7 +231,7 @@ def _check_same(record: RunRecord, spec: RunSpec, experiment: str, cell: Cell, s
     wanted = {
         "optimizer": spec.optimizer,
         "budget": spec.budget,
-        "settings": asdict(spec.settings),
+        "settings": _settings_as_stored(record, spec, optimizer_info),
         **{f"optimizer.{k}": v for k, v in spec.optimizer_params.items()},
         **{f"problem.{k}": v for k, v in spec.problem_params.items()},
     }
@@ -228,3 +242,17 @@ def _check_same(record: RunRecord, spec: RunSpec, experiment: str, cell: Cell, s
             f"with other settings ({'; '.join(changed)}); give the experiment a new name or "
             "use another --db"
         )
+
+
+def _settings_as_stored(
+    record: RunRecord, spec: RunSpec, optimizer_info: OptimizerInfo
+) -> dict[str, object]:
+    """The spec's settings as run() would have stored them on the stored run's space (a warm
+    start's start_points 0 is the optimizer's initial population), to compare like with like."""
+    settings = asdict(spec.settings)
+    if settings == record.settings:
+        return settings
+    # Another space or optimizer refused: the definitions differ, which the caller reports.
+    with contextlib.suppress(ConfigError):
+        settings = asdict(stored_settings(spec, optimizer_info, Space.from_json(record.space)))
+    return settings

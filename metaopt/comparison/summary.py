@@ -14,6 +14,7 @@ from metaopt.comparison.experiment import Cell, Experiment
 from metaopt.params import resolve
 from metaopt.plugins import Registry
 from metaopt.problem import Sense
+from metaopt.reporting.recent import is_flag, metric_value
 from metaopt.reporting.result_table import Column, ResultTable, Row
 from metaopt.storage.experiment_store import ExperimentStore
 from metaopt.storage.run_store import RunRecord
@@ -28,7 +29,8 @@ class FinishedRun:
     best_fitness: float | None
     #: the best candidate's metrics
     metrics: dict[str, float]
-    #: evaluations spent until one reached the target (None: never, or no target)
+    #: evaluations spent until a candidate (its aggregate when resampled) reached the target
+    #: (None: never, or no target)
     evaluations_to_target: int | None
     #: the best single evaluation among the first ``at`` (compare's equal-budget column); None
     #: without ``at``, for a resampled run, or when the run has fewer evaluations
@@ -93,20 +95,30 @@ def _finished_run(
     target: float | None,
     at: int | None,
 ) -> FinishedRun:
+    """What the comparison uses of a finished run (success judged on its best candidate)."""
     best = store.best_candidate(record)
     reached = None
     if target is not None and best is not None and traits.reaches(best.fitness, target):
-        reached = next(
-            e.index + 1
-            for e in store.evaluations(record.id)
-            if e.fitness is not None and traits.reaches(e.fitness, target)
-        )
+        reached = _evaluations_to_target(record, store, traits, target)
     return FinishedRun(
         run=record,
         best_fitness=None if best is None else best.fitness,
         metrics={} if best is None else best.metrics,
         evaluations_to_target=reached,
         best_at=None if at is None else _best_at(record, store, traits, at),
+    )
+
+
+def _evaluations_to_target(
+    record: RunRecord, store: ExperimentStore, traits: ProblemTraits, target: float
+) -> int:
+    """Evaluations spent until a candidate's aggregate (as the optimizer judged it, and success
+    is judged) reached ``target``: its last sample's index + 1; one sample is one evaluation."""
+    # The store's own grouping of samples into complete candidates with their aggregate.
+    return min(
+        candidate.samples[-1].index + 1
+        for candidate in store.complete_candidates(record)
+        if traits.reaches(candidate.fitness, target)
     )
 
 
@@ -151,16 +163,10 @@ def shown_metrics(key_metrics: Iterable[str], metric_sets: Iterable[dict[str, fl
     return names
 
 
-def is_flag(values: Iterable[float]) -> bool:
-    """A metric that is 0 or 1 in every run (such as 'fell'): reported as a rate."""
-    return all(value in (0.0, 1.0) for value in values)
-
-
 def center(values: Sequence[float], flag: bool) -> float | None:
-    """The rate of a flag (the fraction of 1s), else the median; None when there are none."""
-    if not values:
-        return None
-    return float(np.mean(values) if flag else np.median(values))
+    """Over runs: the rate of a flag (the fraction of 1s), else the median, as
+    reporting.recent.metric_value reckons a window's; None when there are none."""
+    return float(metric_value(values, flag)) if values else None
 
 
 def metric_column(name: str, flag: bool) -> Column:

@@ -13,7 +13,6 @@ from metaopt.comparison.summary import (
     center,
     describe,
     finished_runs,
-    is_flag,
     problem_traits,
     shown_metrics,
 )
@@ -21,6 +20,7 @@ from metaopt.errors import ConfigError
 from metaopt.params import resolve
 from metaopt.physics import engine_names
 from metaopt.plugins import Registry
+from metaopt.reporting.recent import is_flag
 from metaopt.reporting.result_table import Column, ResultTable, Row
 from metaopt.storage.experiment_store import ExperimentStore
 

@@ -17,9 +17,13 @@ import math
 import threading
 import time
 from concurrent.futures import Future
+from typing import TYPE_CHECKING
 
 from metaopt.errors import ConfigError
 from metaopt.executors.base import EvaluationTask, Executor, Outcome, evaluate_task
+
+if TYPE_CHECKING:
+    import distributed
 
 #: Tasks handed to Dask per worker thread: a Dask round trip takes milliseconds, so a few wait
 #: ready on each worker and none idles between tasks.
@@ -62,7 +66,8 @@ class DaskExecutor(Executor):
                 "`dask scheduler` and workers with `dask worker ADDRESS`"
             ) from None
         self.workers = max(1, sum(self._client.nthreads().values())) if address else workers
-        self._timers: list[threading.Timer] = []
+        #: each running task's time-limit timer by its Dask key, cancelled when the task settles
+        self._timers: dict[str, threading.Timer] = {}
         self._changed = threading.Condition()
         self._waiting: collections.deque[tuple[EvaluationTask, Future, int]] = collections.deque()
         self._running = 0
@@ -85,7 +90,8 @@ class DaskExecutor(Executor):
         return result
 
     def _hand_over(self) -> None:
-        """Give Dask waiting tasks while fewer than ``workers`` run there."""
+        """Give Dask waiting tasks while fewer than PREFETCH per worker are there (running or
+        queued on a worker), so each worker has its next task at hand."""
         while True:
             with self._changed:
                 while not self._closing and (
@@ -112,12 +118,23 @@ class DaskExecutor(Executor):
             return 0
 
     def _start(self, task: EvaluationTask, result: Future, attempt: int) -> None:
+        """Hand one task to Dask, with a timer for its time limit that lives only until the
+        task settles (fast evaluations leave no sleeping timer threads behind)."""
         # A screened candidate's index is evaluated twice (screen, then complete): the phase
         # keeps the keys apart, since the cluster hands back a finished key's result.
         key = f"metaopt-{task.phase}-{task.index}-{task.seed}-{attempt}"
         dask_future = self._client.submit(evaluate_task, task, key=key, pure=False)
+        if task.time_limit is not None:  # before settle can run, so that it finds the timer
+            timer = threading.Timer(
+                task.time_limit, self._abandon, (key, task, result, dask_future)
+            )
+            timer.daemon = True
+            with self._changed:
+                self._timers[key] = timer
+            timer.start()
 
         def settle(done) -> None:
+            self._stop_timer(key)  # this attempt is over: its time limit no longer applies
             try:
                 outcome = done.result()
             except Exception as error:  # KilledWorker, CancelledError, lost connection
@@ -137,25 +154,39 @@ class DaskExecutor(Executor):
                 result.set_result(outcome)
 
         dask_future.add_done_callback(settle)
-        if task.time_limit is not None:
-            timer = threading.Timer(task.time_limit, self._abandon, (task, result, dask_future))
-            timer.daemon = True
-            timer.start()
-            self._timers.append(timer)
 
-    @staticmethod
-    def _abandon(task: EvaluationTask, result: Future, dask_future) -> None:
+    def _stop_timer(self, key: str) -> None:
+        """Cancel and forget the time-limit timer of the task with this Dask key, if any."""
+        with self._changed:
+            timer = self._timers.pop(key, None)
+        if timer is not None:
+            timer.cancel()
+
+    def _abandon(
+        self, key: str, task: EvaluationTask, result: Future, dask_future: distributed.Future
+    ) -> None:
+        """The task ran past its time limit: fail it now and forget its (fired) timer; the
+        worker finishes the evaluation, whose result is ignored."""
+        with self._changed:
+            self._timers.pop(key, None)
         if not result.done():
             reason = f"EvaluationTimeout: exceeded the time limit of {task.time_limit:g} s"
             result.set_result(Outcome(task.index, None, error=reason, wall_time=task.time_limit))
             dask_future.cancel()
 
     def shutdown(self) -> None:
+        """Stop handing tasks over, cancel the time-limit timers and what waits, and close the
+        client and the cluster started here; a second call (the run's, then its caller's)
+        does nothing."""
         with self._changed:
+            if self._closing:
+                return
             self._closing = True
             self._changed.notify()
         self._dispatcher.join()
-        for timer in self._timers:
+        with self._changed:
+            timers, self._timers = list(self._timers.values()), {}
+        for timer in timers:
             timer.cancel()
         for _, result, _ in self._waiting:
             result.cancel()

@@ -164,6 +164,11 @@ class ProcessExecutor(Executor):
         job.future.set_result(Outcome(job.task.index, None, error=reason, wall_time=limit))
 
     def shutdown(self) -> None:
+        """Stop the manager and the workers (a busy one is killed after 2 s), cancel what
+        waits, and close every pipe, so no descriptor outlives the pool; a second call (the
+        run's, then its caller's) does nothing."""
+        if self._stopping:
+            return
         self._stopping = True
         self._wake_writer.send_bytes(b"")
         self._manager.join()
@@ -175,5 +180,9 @@ class ProcessExecutor(Executor):
             worker.process.join(timeout=2)
             if worker.process.is_alive():
                 worker.kill()
+            worker.connection.close()  # kill() may have closed it already: closing is idempotent
+            worker.process.close()  # its sentinel's descriptor
         for job in self._queue:
             job.future.cancel()
+        self._wake_reader.close()
+        self._wake_writer.close()

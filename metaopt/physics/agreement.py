@@ -292,7 +292,7 @@ def measure_motor(sim: PhysicsBackend) -> list[Figure]:
     ]
 
 
-#: Every measurement by name: (what it measures, the function).
+#: Every measurement by name: the function that makes it on an engine (its docstring says what).
 MEASUREMENTS: dict[str, Measurement] = {
     "mass_and_inertia": measure_mass,
     "ground_friction": measure_friction,

@@ -666,10 +666,12 @@ def robustness_ranking(
 
 def goal_verdict(label: str, totals: Sequence, goals: Sequence) -> str:
     """Which goals a candidate meets over each engine's whole table, one line per engine:
-    'mujoco: meets all', 'pybullet: misses fell<=0.05 (0.073)'."""
+    'mujoco: meets all', 'pybullet: misses fell<=0.05 (0.073)' (judged as Goal.margin does,
+    a goal's only_when rate included)."""
     lines = [f"{label} against the goals {', '.join(map(str, goals))}:"]
     for total in totals:
-        figures = {goal.metric: total.summary(goal.metric)[0] for goal in goals}
+        names = dict.fromkeys(n for g in goals for n in (g.metric, g.only_when) if n is not None)
+        figures = {name: total.summary(name)[0] for name in names}
         lines.append(_verdict_line(total.engine, figures, total.failed, goals))
     return "\n".join(lines)
 

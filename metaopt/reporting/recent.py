@@ -83,13 +83,14 @@ def fitness_quartiles(fitnesses: Sequence[float]) -> tuple[float, float, float] 
 
 
 def is_flag(values: Iterable[float]) -> bool:
-    """Whether a metric is 0 or 1 in every evaluation that reports it (a flag such as
-    nao-walk's ``fell``): such a metric is shown as the share at 1, not as a median."""
+    """Whether a metric is 0 or 1 in every value given (each evaluation's or run's that reports
+    it; a flag such as nao-walk's ``fell``): shown as the share at 1, not as a median."""
     return all(value in (0.0, 1.0) for value in values)
 
 
 def metric_value(values: Sequence[float], share: bool) -> float:
-    """A metric over a window: the share of its values at 1 (a flag), or their median."""
+    """A metric over a window (or over runs, metaopt compare): the share of its values at 1 (a
+    flag), or their median; one rule for every table."""
     return sum(values) / len(values) if share else statistics.median(values)
 
 

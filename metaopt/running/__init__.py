@@ -13,7 +13,7 @@ a steady-state optimizer is asked for a new candidate whenever one finishes; fas
 order of results (and so the run) depends on timing.
 """
 
-from metaopt.running.launch import check_run, resume, run
+from metaopt.running.launch import check_resume, check_run, resume, run
 from metaopt.running.signals import RunInterrupted, stop_on_sigterm
 from metaopt.running.spec import (
     COMMON_SEEDS,
@@ -35,6 +35,7 @@ __all__ = [
     "RunResult",
     "RunSettings",
     "RunSpec",
+    "check_resume",
     "check_run",
     "common_seeds_mode",
     "resume",

@@ -18,7 +18,7 @@ from metaopt.problem import Problem, ProblemInfo, Sense
 from metaopt.running.session import Session
 from metaopt.running.spec import MAX_TIME_STOP, Progress, RunResult, RunSettings, RunSpec
 from metaopt.space import Space
-from metaopt.storage.run_store import RunStore
+from metaopt.storage.run_store import RunRecord, RunStore
 from metaopt.versions import environment_versions
 from metaopt.warm_start import check_start
 
@@ -122,11 +122,7 @@ def _prepared(spec: RunSpec, optimizer_info: OptimizerInfo, problem_info: Proble
     if spec.budget < 1:
         raise ConfigError(f"budget must be a positive number of evaluations, got {spec.budget}")
     spec.settings.check(spec.budget)
-    given = dict(spec.optimizer_params)
-    if any(p.name == "budget" for p in optimizer_info.params):
-        # Schedules (e.g. IHS) span the candidates the optimizer will be told.
-        given.setdefault("budget", spec.budget // spec.settings.resample)
-    optimizer_params = resolve(optimizer_info.params, given, optimizer_info.name)
+    optimizer_params = _optimizer_params(spec, optimizer_info)
     problem_params = resolve(problem_info.params, spec.problem_params, problem_info.name)
     problem = problem_info.factory(**problem_params)
     try:
@@ -153,6 +149,24 @@ def _prepared(spec: RunSpec, optimizer_info: OptimizerInfo, problem_info: Proble
         problem.close()
         raise
     return _Prepared(spec, problem, optimizer, optimizer_params, problem_params, tuple(notes))
+
+
+def _optimizer_params(spec: RunSpec, optimizer_info: OptimizerInfo) -> dict[str, Any]:
+    """The spec's optimizer parameters resolved as the run stores them: a ``budget`` parameter
+    defaults to the candidates the run will tell (schedules such as IHS span them)."""
+    given = dict(spec.optimizer_params)
+    if any(p.name == "budget" for p in optimizer_info.params):
+        given.setdefault("budget", spec.budget // spec.settings.resample)
+    return resolve(optimizer_info.params, given, optimizer_info.name)
+
+
+def stored_settings(spec: RunSpec, optimizer_info: OptimizerInfo, space: Space) -> RunSettings:
+    """The settings run() stores for ``spec`` on ``space`` (its warm start's start points fixed
+    as _with_start_points fixes them), so that a stored run can be told from another spec's."""
+    if spec.settings.start is None or spec.settings.start_points:
+        return spec.settings  # nothing for the run to fix: no optimizer built
+    optimizer = optimizer_info.factory(space, spec.seed, **_optimizer_params(spec, optimizer_info))
+    return _with_start_points(spec, space, optimizer).settings
 
 
 def _check_screening(
@@ -195,6 +209,27 @@ def _with_start_points(spec: RunSpec, space: Space, optimizer: Optimizer) -> Run
     return replace(spec, settings=replace(settings, start_points=count))
 
 
+def check_resume(run_id: int | str, store: RunStore, budget: int | None = None) -> RunRecord:
+    """The stored run resume() would continue, or the ConfigError it would refuse it with (a
+    finished run without a larger budget, a budget not above the evaluations made): checked
+    before any worker starts."""
+    record = store.run(run_id)
+    if budget is not None:
+        made = store.evaluation_counts(record.id).stored
+        if budget <= made:
+            raise ConfigError(
+                f"budget must be more than the {made} evaluations run {record.id} has made "
+                f"(evaluations in all, not more), got {budget}"
+            )
+    stopped_early = (record.message or "").startswith(MAX_TIME_STOP)
+    if record.status == "finished" and not stopped_early and budget is None:
+        raise ConfigError(
+            f"run {record.id} already finished; nothing to resume (a larger budget continues "
+            "a run that spent its budget)"
+        )
+    return record
+
+
 def resume(
     run_id: int | str,
     store: RunStore,
@@ -216,20 +251,7 @@ def resume(
     once), but for an optimizer whose schedule spans its budget (its ``budget`` parameter stays
     the one it started with: past it the schedule stays at its end).
     """
-    record = store.run(run_id)
-    if budget is not None:
-        made = store.evaluation_counts(record.id).stored
-        if budget <= made:
-            raise ConfigError(
-                f"budget must be more than the {made} evaluations run {record.id} has made "
-                f"(evaluations in all, not more), got {budget}"
-            )
-    stopped_early = (record.message or "").startswith(MAX_TIME_STOP)
-    if record.status == "finished" and not stopped_early and budget is None:
-        raise ConfigError(
-            f"run {record.id} already finished; nothing to resume (a larger budget continues "
-            "a run that spent its budget)"
-        )
+    record = check_resume(run_id, store, budget)
     if max_time is not None:
         record.settings = {**record.settings, "max_time": max_time}
     if budget is not None:

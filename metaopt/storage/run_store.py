@@ -14,6 +14,7 @@ import sqlite3
 import threading
 import time
 from collections.abc import Iterator
+from contextlib import AbstractContextManager
 from dataclasses import dataclass
 from datetime import datetime, timezone
 from pathlib import Path
@@ -27,6 +28,8 @@ from metaopt.resampling import aggregate_fitness, aggregate_metrics
 FORMAT_NAME = "metaopt-run-store"
 SCHEMA_VERSION = 1
 FLUSH_INTERVAL = 0.5
+#: Seconds a write waits for another connection's write lock before it fails.
+BUSY_TIMEOUT = 30.0
 DEFAULT_DB = "metaopt.db"
 #: A running run's owner renews its claim this often (seconds) ...
 HEARTBEAT_INTERVAL = 5.0
@@ -188,7 +191,11 @@ def _now() -> str:
 class RunStore:
     """A SQLite run store at ``path`` (created if missing; refused if it is not a metaopt store)."""
 
-    def __init__(self, path: str | Path = DEFAULT_DB) -> None:
+    def __init__(
+        self, path: str | Path = DEFAULT_DB, *, busy_timeout: float = BUSY_TIMEOUT
+    ) -> None:
+        """Open (or create) the store; a write waits up to ``busy_timeout`` seconds for another
+        connection's write lock before it fails."""
         self.path = Path(path)
         if self.path.is_dir():
             raise StoreError(f"--db {self.path} is a directory; give a database file path")
@@ -201,13 +208,19 @@ class RunStore:
                     )
         try:
             self._connection = sqlite3.connect(
-                self.path, timeout=30.0, check_same_thread=False, isolation_level=None
+                self.path, timeout=busy_timeout, check_same_thread=False, isolation_level=None
             )
+        except sqlite3.DatabaseError as error:
+            raise StoreError(f"cannot use {self.path} as a run store: {error}") from None
+        try:
             self._check_or_create_schema()  # first: a foreign database is left as it was
             self._connection.execute("PRAGMA journal_mode=WAL")
             self._connection.execute("PRAGMA synchronous=NORMAL")
-        except sqlite3.DatabaseError as error:
-            raise StoreError(f"cannot use {self.path} as a run store: {error}") from None
+        except BaseException as error:
+            self._connection.close()  # a refused store leaves no connection open
+            if isinstance(error, sqlite3.DatabaseError):
+                raise StoreError(f"cannot use {self.path} as a run store: {error}") from None
+            raise
         self._lock = threading.Lock()
         self._pending: list[tuple] = []
         self._stop = threading.Event()
@@ -242,15 +255,30 @@ class RunStore:
                 f"{meta['schema_version']}); upgrade metaopt to read it"
             )
 
-    def _transaction(self):
+    def _transaction(self) -> AbstractContextManager[None]:
+        """A write transaction (BEGIN IMMEDIATE): committed, or rolled back on an error; a
+        COMMIT that fails (a lock, a full disk) is rolled back too, so none is left open."""
         connection = self._connection
 
         class _Transaction:
-            def __enter__(self):
+            def __enter__(self) -> None:
                 connection.execute("BEGIN IMMEDIATE")
 
-            def __exit__(self, kind, value, traceback):
-                connection.execute("COMMIT" if kind is None else "ROLLBACK")
+            def __exit__(self, kind: type[BaseException] | None, value: object, tb: object) -> None:
+                if kind is None:
+                    try:
+                        connection.execute("COMMIT")
+                        return
+                    except BaseException:
+                        self._rollback()
+                        raise
+                self._rollback()
+
+            @staticmethod
+            def _rollback() -> None:
+                # SQLite rolls some failures back itself (a full disk): then there is none left
+                if connection.in_transaction:
+                    connection.execute("ROLLBACK")
 
         return _Transaction()
 
@@ -332,10 +360,16 @@ class RunStore:
         self._flusher.start()
 
     def _flush_loop(self) -> None:
+        """Commit queued evaluations (and renew claims) every tick; a failed write (the store
+        locked past the busy timeout, a full disk) keeps its rows and is tried again on the
+        next tick, and a failure that lasts is raised by the next explicit flush or close."""
         while not self._stop.wait(FLUSH_INTERVAL / 2):
-            self.flush()
-            if self._owned and time.time() - self._last_heartbeat >= HEARTBEAT_INTERVAL:
-                self._heartbeat()
+            try:
+                self.flush()
+                if self._owned and time.time() - self._last_heartbeat >= HEARTBEAT_INTERVAL:
+                    self._heartbeat()
+            except sqlite3.Error:
+                continue  # the rows stay queued: the next tick (or flush, or close) tries again
 
     def claim(self, run_id: int) -> None:
         """Make this process the run's owner, or StoreError naming the live process that owns
@@ -363,12 +397,15 @@ class RunStore:
             self._start_flusher()
 
     def _heartbeat(self) -> None:
-        self._last_heartbeat = time.time()
+        """Renew this process's claims on the runs it owns (a failed renewal is retried on the
+        flusher's next tick)."""
+        now = time.time()
         with self._lock, self._transaction():
             self._connection.executemany(
                 "UPDATE run_owners SET heartbeat = ? WHERE run_id = ? AND pid = ? AND host = ?",
-                [(self._last_heartbeat, run_id, os.getpid(), HOST) for run_id in self._owned],
+                [(now, run_id, os.getpid(), HOST) for run_id in self._owned],
             )
+        self._last_heartbeat = now
 
     def _release(self, run_id: int) -> None:
         """This process no longer runs the run (caller holds the lock, in a transaction)."""
@@ -381,9 +418,11 @@ class RunStore:
 
     def flush(self, checkpoint: tuple[int, dict] | None = None) -> None:
         """Commit queued evaluations now; optionally with a (run_id, checkpoint) in the same
-        transaction, so the optimizer state never gets ahead of the stored evaluations."""
-        with self._lock:
-            rows, self._pending = self._pending, []
+        transaction, so the optimizer state never gets ahead of the stored evaluations. When
+        the write fails (locked past the busy timeout, a full disk) the error is raised and
+        the evaluations stay queued, first, for the next flush."""
+        with self._lock:  # nothing is queued meanwhile: the rows stay first in _pending
+            rows = self._pending
             if not rows and checkpoint is None:
                 return
             with self._transaction():
@@ -396,6 +435,7 @@ class RunStore:
                     self._connection.execute(
                         "UPDATE runs SET checkpoint = ? WHERE id = ?", (json.dumps(content), run_id)
                     )
+            self._pending = []  # committed
 
     def mark_running(self, run_id: int, settings: dict[str, Any], budget: int) -> None:
         """A resumed run is running again, with the settings and budget it resumes with (a new
@@ -425,17 +465,20 @@ class RunStore:
             self._release(run_id)
 
     def close(self) -> None:
-        """Stop the flusher, commit what is queued and close the database."""
+        """Stop the flusher, commit what is queued and close the database; a write that still
+        fails (the store locked, a full disk) is raised, the database closed all the same."""
         if self._flusher is not None:
             self._stop.set()
             self._flusher.join()
             self._flusher = None
-        self.flush()
-        if self._owned:
-            with self._lock, self._transaction():
-                for run_id in list(self._owned):
-                    self._release(run_id)
-        self._connection.close()
+        try:
+            self.flush()
+            if self._owned:
+                with self._lock, self._transaction():
+                    for run_id in list(self._owned):
+                        self._release(run_id)
+        finally:
+            self._connection.close()
 
     def __enter__(self) -> RunStore:
         return self
@@ -545,7 +588,7 @@ class RunStore:
         re-checking the top of a run, whose best is the luckiest of many noisy scores; its
         latest have been through more of its selection than an early lucky one."""
         sign = -1.0 if run.sense == "maximize" else 1.0
-        complete = self._complete_candidates(run)
+        complete = self.complete_candidates(run)
         if last is not None:  # counted back from the latest, whether it succeeded or not
             (latest,) = self._connection.execute(
                 "SELECT MAX(candidate) FROM evaluations WHERE run_id = ?", (run.id,)
@@ -562,12 +605,12 @@ class RunStore:
     def candidate(self, run: RunRecord, number: int) -> CandidateRecord:
         """Candidate ``number`` of the run with its samples' aggregate (StoreError when the run
         has no such candidate with all its samples successful)."""
-        for candidate in self._complete_candidates(run):
+        for candidate in self.complete_candidates(run):
             if candidate.number == number:
                 return candidate
         raise StoreError(f"run {run.id} has no candidate {number} with all its samples successful")
 
-    def _complete_candidates(self, run: RunRecord) -> Iterator[CandidateRecord]:
+    def complete_candidates(self, run: RunRecord) -> Iterator[CandidateRecord]:
         """Every candidate of the run whose samples all succeeded, with their aggregate."""
         resample = int(run.settings.get("resample", 1))
         aggregate = run.settings.get("aggregate", "mean")

@@ -100,7 +100,7 @@ def check_binds(factory: Callable[..., Any], args: tuple, values: Mapping[str, A
         ) from None
 
 
-def build(factory: Callable[..., Any], args: tuple, values: Mapping[str, Any], kind: type):
+def build(factory: Callable[..., Any], args: tuple, values: Mapping[str, Any], kind: type) -> Any:
     """``factory(*args, **values)``, which must return a ``kind``; ConformanceError otherwise."""
     call = "factory(space, seed, **params)" if args else "factory(**params)"
     try:
