@@ -1,15 +1,18 @@
 """How each engine's joint motors behave, measured from the engines (docs/nao-walk.md, "Motors").
 
 For each physics backend prints
-  * saturation: replaying stored fast gaits (their recorded evaluation), the fraction of
-    control steps on which some joint's motor torque read back is at the limit (within 1 %),
-    and the fraction of joint-steps at it; and the gait's speed, drift and fall;
+  * saturation: replaying stored fast gaits (their recorded evaluation), the fraction of the
+    walking phase's control steps (up to a fall) on which some joint's motor torque read back
+    is at the limit (within 1 %), and the fraction of joint-steps at it; and the gait's speed
+    (over the time it walked), drift and fall;
   * response: the head's yaw joint commanded 3 rad/s from rest, sampled every physics step
     (control period = one physics step): the time until it turns at 90 % of that;
   * standing: 3 s with every joint held at rest: largest torso tilt after the first second,
     torso height, largest joint error.
 
     python benchmarks/motor_model.py [--backends mujoco,pybullet] [--gaits stride_mujoco,...]
+
+--backends defaults to every engine that can run here.
 """
 
 from __future__ import annotations
@@ -29,32 +32,35 @@ COMMAND = 3.0
 
 
 def saturation(backend: str, gait_name: str) -> dict[str, float]:
-    """Torque-limit fractions and metrics of a stored gait's recorded episode on backend."""
+    """Torque-limit fractions over the walking phase's control steps (up to a fall; the lock
+    phase left out) of a stored gait's recorded episode on backend, with its own metrics."""
     record = load_gait(gait_name)
     problem = gait_problem(record["problem_params"], backend)
     try:
-        sim = problem.runner.backend
-        limit = 0.99 * sim.settings.max_joint_torque
-        at_limit: list[np.ndarray] = []
-        plain_step = sim.step
-
-        def step(targets: np.ndarray) -> None:
-            plain_step(targets)
-            at_limit.append(np.abs(sim.joint_torques()) >= limit)
-
-        sim.step = step  # type: ignore[method-assign]
         found_by = record["found_by"]
         seed = found_by.get("evaluation_seed", found_by["seed"])
-        metrics = problem.evaluate(gait_vector(record), seed).metrics
-        walking = np.array(at_limit[-problem.runner.walk_steps :])
+        walk, disturbance, push = problem.walked(seed)  # the world its evaluation walks in
+        runner = walk.runner
+        sim = runner.backend
+        limit = 0.99 * sim.settings.max_joint_torque
+        at_limit: list[np.ndarray] = []
+
+        def read_torques(_: int) -> None:
+            """After each walking control step: which joints' motors are at the limit."""
+            at_limit.append(np.abs(sim.joint_torques()) >= limit)
+
+        gait = walk.gait(gait_vector(record))
+        result = runner.run(gait, disturbance=disturbance, on_step=read_torques, push=push)
     finally:
         problem.close()
+    walking = np.array(at_limit)
     return {
         "steps_at_limit": float(walking.any(axis=1).mean()),
         "joint_steps_at_limit": float(walking.mean()),
-        "speed": metrics["distance"] / problem.runner.walk_steps / sim.settings.control_period,
-        "drift": metrics["drift"],
-        "fell": metrics["fell"],
+        "steps": float(len(walking)),
+        "speed": result.speed,
+        "drift": result.drift,
+        "fell": float(result.fell),
     }
 
 
@@ -93,8 +99,11 @@ def standing(backend: str) -> dict[str, float]:
 
 
 def main() -> None:
+    """Print each runnable engine's saturation, response and standing (engines that cannot run
+    here are left out unless --backends names them)."""
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--backends", default=",".join(registry().physics_backends))
+    available = [n for n, info in registry().physics_backends.items() if not info.unavailable]
+    parser.add_argument("--backends", default=",".join(available))
     parser.add_argument("--gaits", default=",".join(GAITS))
     args = parser.parse_args()
     for backend in args.backends.split(","):
@@ -104,7 +113,7 @@ def main() -> None:
             print(
                 f"  {gait}: steps at the torque limit {s['steps_at_limit']:.1%}, joint-steps "
                 f"{s['joint_steps_at_limit']:.1%}; speed {s['speed']:.3f} m/s, drift "
-                f"{s['drift']:+.3f} m, fell {s['fell']:.0f}"
+                f"{s['drift']:+.3f} m, fell {s['fell']:.0f} ({s['steps']:.0f} walking steps)"
             )
         print(f"  head yaw to 90 % of {COMMAND} rad/s: {response_time(backend) * 1000:.1f} ms")
         st = standing(backend)

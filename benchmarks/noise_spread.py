@@ -1,6 +1,6 @@
 """The stored HS gait's distance under noise (docs/nao-walk.md, "Noise"): for each noise level
 and engine, the distance in the 12 s walking phase over SEEDS noise seeds (mean ± std,
-min – max) and the falls. Usage:
+min – max) and the falls, on every engine that can run here. Usage:
 
     python benchmarks/noise_spread.py [--gait hs_walk] [--seeds 20] [--noise 0,0.5,1,2,3]
 """
@@ -26,12 +26,14 @@ def spread(gait: str, engine: str, noise: float, seeds: int) -> str:
 
 
 def main() -> None:
+    """Print the noise-spread table over the engines that can run here (an unavailable one
+    would stop it partway)."""
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--gait", default="hs_walk")
     parser.add_argument("--seeds", type=int, default=20)
     parser.add_argument("--noise", default="0,0.5,1,2,3")
     args = parser.parse_args()
-    engines = list(registry().physics_backends)
+    engines = [n for n, info in registry().physics_backends.items() if not info.unavailable]
     columns = " | ".join(f"{engine} distance, mean ± std (min – max)" for engine in engines)
     print(f"| noise | {columns} |")
     print("|---|" + "---|" * len(engines))

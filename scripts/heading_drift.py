@@ -20,6 +20,7 @@ from metaopt.assessment.robustness import summarize
 from metaopt.seeding import EvaluationSeeds
 from metaopt_problems.nao_walk.episode import heading
 from metaopt_problems.nao_walk.plugin import NaoWalk
+from metaopt_problems.nao_walk.robustness import UNSAMPLED
 from metaopt_problems.nao_walk.stored_gaits import (
     ENGINES,
     gait_problem,
@@ -48,6 +49,8 @@ def turned(problem: NaoWalk, x: np.ndarray, seed: int) -> tuple[float, float, fl
 
 
 def main() -> None:
+    """Print each engine's heading and drift statistics for the stored gait named on the
+    command line, in the nominal world (its sampled worlds and cells left out)."""
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("gait", help="a stored gait's name")
     parser.add_argument("--seeds", type=int, default=10)
@@ -58,7 +61,7 @@ def main() -> None:
     draw = EvaluationSeeds(0)  # the seeds replay_over_seeds draws
     print(f"{args.gait}, {args.seeds} seeds at noise {NOISE}, nominal world")
     for engine in ENGINES:
-        params = {**record["problem_params"], "worlds": "none", "noise": NOISE}
+        params = {**record["problem_params"], "noise": NOISE, **UNSAMPLED}  # as replay_over_seeds
         problem = gait_problem(params, engine)
         rows = np.array([turned(problem, x, draw(i)) for i in range(args.seeds)])
         problem.close()

@@ -5,7 +5,9 @@ from __future__ import annotations
 
 import json
 import math
+import os
 import pickle
+import re
 import subprocess
 import sys
 from pathlib import Path
@@ -15,11 +17,12 @@ import pytest
 
 from metaopt import ConfigError, EvaluationError, Sense
 from metaopt.params import resolve
-from metaopt.physics import PhysicsSettings
+from metaopt.physics import PhysicsSettings, engine_names
 from metaopt.plugins import registry
 from metaopt_problems.nao_walk.episode import (
     FALL_PENALTY,
     FLIGHT_ALLOWED,
+    Disturbance,
     EpisodeResult,
     EpisodeRunner,
     EpisodeSettings,
@@ -28,7 +31,16 @@ from metaopt_problems.nao_walk.episode import (
     fitness,
 )
 from metaopt_problems.nao_walk.robot import nao
-from tests.conftest import metaopt_cli
+from metaopt_problems.nao_walk.robustness import STANDARD_TABLE
+from metaopt_problems.nao_walk.stored_gaits import (
+    gait_problem,
+    gait_seed,
+    gait_vector,
+    load_gait,
+    stored_gait_names,
+)
+from metaopt_problems.physics.ode_binding import LIBRARY_ENV
+from tests.conftest import load_script, metaopt_cli
 
 BACKENDS = ("mujoco", "pybullet")
 SHORT = EpisodeSettings(duration=4.0, lock=1.0)
@@ -227,6 +239,132 @@ def test_a_friction_the_backend_cannot_stand_on_is_refused_up_front() -> None:
     x = (problem.space.lower + problem.space.upper) / 2
     assert problem.evaluate(x, seed=1).metrics["time_walked"] > 0  # it stood through the lock
     problem.close()
+
+
+def test_a_noise_that_could_draw_a_friction_past_the_engines_limit_is_refused() -> None:
+    """The noise multiplies the nominal friction (friction x friction_scale) by up to
+    exp(FRICTION_SPREAD * noise) in the walking phase: a problem whose draws could pass an
+    engine's limit is refused when made, on every engine of the backend and in every cell its
+    worlds draw, naming the largest draw and the limit; an unlimited friction (ODE's) is kept."""
+    info = registry().problem("nao-walk")
+    refused = (
+        ({"friction": 3.0, "noise": 1.0}, r"noise 1 draws .* up to 3\.664 .*mujoco .*at most 3\);"),
+        ({"backend": "pybullet+mujoco+ode", "noise": 10.0}, r"up to 7\.389 .*mujoco .*at most 3"),
+        ({"backend": "pybullet", "friction": 1.5, "noise": 10.0}, r"pybullet .*at most 10"),
+        ({"friction": 2.5, "friction_scale": 1.1, "noise": 0.5}, r"up to 3\.039 \(friction 2\.75"),
+        # its own world draws up to 2.34, the 'friction x1.3' cell's up to 3.04
+        ({"friction": 2.25, "noise": 0.2, "worlds": "standard"},
+         r"in the cell 'friction x1\.3' that worlds=standard draws: noise 0\.2 draws .* 3\.044"),
+    )  # fmt: skip
+    for given, message in refused:
+        with pytest.raises(ConfigError, match=message):
+            info.factory(**given)
+    draws = [Disturbance.draw(1.0, seed, 3.0, 1).friction for seed in range(200)]
+    assert max(draws) > 3.0  # what was accepted before: draws past MuJoCo's limit
+    for given in (
+        {"friction": 3.0},  # no noise: the nominal friction alone
+        {"friction": 2.4, "noise": 1.0},  # up to 2.93
+        {"backend": "pybullet+ode", "noise": 10.0},  # up to 7.39, and unlimited on ODE
+        {"backend": "ode", "friction": math.inf, "noise": 10.0},
+    ):
+        info.factory(**given).close()
+
+
+def test_every_stored_gaits_settings_and_its_table_cells_stay_accepted() -> None:
+    """No stored gait's settings, on its own engines or in any cell of the standard table
+    (which scales the friction and sets noises of its own), are refused by the noise's
+    friction limit or the push's rounding."""
+    info = registry().problem("nao-walk")
+    for name in stored_gait_names():
+        params = load_gait(name)["problem_params"]
+        info.factory(**resolve(info.params, params, name)).close()
+        for engine in engine_names(params["backend"]):
+            for cell in STANDARD_TABLE.cells:
+                given = {**cell.apply({**params, **STANDARD_TABLE.common}), "backend": engine}
+                info.factory(**resolve(info.params, given, f"{name} {cell.name}")).close()
+
+
+def test_a_push_rounded_past_the_walking_phase_is_refused_up_front() -> None:
+    """The push acts in the control step nearest to push_time: one that rounds to the end of
+    the walking phase is refused when the problem is made (it failed every evaluation), and one
+    that rounds to its last step is accepted."""
+    info = registry().problem("nao-walk")
+    for push_time in (14.995, 15.0, 2.99):
+        with pytest.raises(ConfigError, match=r"push_time .* accepted from lock \(3\.0 s\) to "
+                           r"14\.98 s, the last step's start"):  # fmt: skip
+            info.factory(push=1.0, push_time=push_time)
+    last = info.factory(push=1.0, push_time=14.985)
+    try:
+        assert last.runner_on("mujoco").run(SineGait()).time_walked == 12.0
+    finally:
+        last.close()
+
+
+def test_an_unknown_fitness_is_refused_from_python_too() -> None:
+    """NaoWalk built from Python checks fitness as the CLI does, instead of running the robust
+    one under another name."""
+    with pytest.raises(ConfigError, match=r"unknown fitness 'robustt'; accepted: robust, paper"):
+        registry().problem("nao-walk").factory(fitness="robustt")
+
+
+@pytest.mark.parametrize("backend", BACKENDS)
+def test_an_open_loop_replay_from_the_lock_state_retraces_the_episode(backend: str) -> None:
+    """The lock state the runner keeps is where the walking phase starts: the episode's
+    recorded targets replayed open-loop from it (benchmarks/episode_throughput.py's physics
+    rate) end exactly where the episode did; from the state the episode left, they do not."""
+    throughput = load_script("benchmarks/episode_throughput.py")
+    episode = runner(backend)
+    assert episode.lock_state is None  # no lock phase simulated yet
+    recorded = episode.run(SineGait(), record=True)
+    trajectory = recorded.trajectory
+    robot = episode.backend.robot
+    sequence = np.tile(robot.rest_angles, (len(trajectory["time"]), 1))
+    for name in SineGait.joints:
+        sequence[:, robot.joint_index(name)] = trajectory[f"{name}_target"]
+    walked_to = [trajectory[axis][-1] for axis in "xyz"]
+    after_walk = episode.backend.save_state()
+    assert throughput.replay(episode.backend, after_walk, sequence).tolist() != walked_to
+    assert throughput.replay(episode.backend, episode.lock_state, sequence).tolist() == walked_to
+    episode.backend.close()
+
+
+def test_motor_saturation_is_measured_over_the_steps_walked() -> None:
+    """benchmarks/motor_model.py on a gait that falls (stride_mujoco on PyBullet, after 2.9 s):
+    the torques are read on the walking steps up to the fall alone, not the lock phase's, and
+    the speed is the episode's own (over the time walked, not the full 12 s)."""
+    motors = load_script("benchmarks/motor_model.py")
+    record = load_gait("stride_mujoco")
+    problem = gait_problem(record["problem_params"], "pybullet")
+    try:
+        metrics = problem.evaluate(gait_vector(record), gait_seed(record)).metrics
+    finally:
+        problem.close()
+    assert metrics["fell"] == 1.0 and metrics["time_walked"] < 12.0
+    measured = motors.saturation("pybullet", "stride_mujoco")
+    assert measured["speed"] == metrics["speed"]
+    assert (measured["drift"], measured["fell"]) == (metrics["drift"], metrics["fell"])
+    assert measured["steps"] == round(metrics["time_walked"] / 0.02)
+    assert 0.0 <= measured["joint_steps_at_limit"] <= measured["steps_at_limit"] <= 1.0
+
+
+@pytest.mark.parametrize(
+    "benchmark",
+    [
+        ["benchmarks/noise_spread.py", "--seeds", "1", "--noise", "0"],
+        ["benchmarks/motor_model.py", "--gaits", "hs_walk"],
+    ],
+)
+def test_the_benchmarks_leave_out_an_engine_that_cannot_run_here(benchmark: list[str]) -> None:
+    """Without libode8 (a library path that does not exist stands in for it) the benchmarks
+    run on the other engines by default, instead of stopping at ODE with a ConfigError."""
+    env = {**os.environ, LIBRARY_ENV: "libode-not-here.so.8"}
+    done = subprocess.run(
+        [sys.executable, *benchmark], cwd=REPO, env=env, capture_output=True, text=True,
+        timeout=600,
+    )  # fmt: skip
+    assert done.returncode == 0, done.stderr
+    assert "mujoco" in done.stdout and "pybullet" in done.stdout
+    assert "ode" not in re.findall(r"\w+", done.stdout)
 
 
 def test_cli_run_then_replay_on_the_other_engine(tmp_path):

@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import math
 import re
+import sys
 
 import numpy as np
 import pytest
@@ -31,6 +32,7 @@ from metaopt_problems.nao_walk.footfalls import footfalls
 from metaopt_problems.nao_walk.robot import nao
 from metaopt_problems.nao_walk.robustness import PUSH_IMPULSE, STANDARD_TABLE
 from metaopt_problems.nao_walk.stored_gaits import gait_vector, load_gait
+from tests.conftest import load_script
 
 #: every installed engine (an engine plugin added later is covered without a change here)
 BACKENDS = tuple(registry().physics_backends)
@@ -463,3 +465,18 @@ def test_figures_and_video_show_the_world_an_evaluation_walked() -> None:
                 direct.close()
     finally:
         plain.close()
+
+
+def test_heading_drift_replays_a_gait_searched_over_world_cells_in_the_nominal_world(
+    monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """scripts/heading_drift.py leaves out every sampling setting, world_cells included, as
+    replay_over_seeds does: a gait searched over cells (throughput_walk) is replayed, not
+    refused for world_cells without worlds."""
+    drift = load_script("scripts/heading_drift.py")
+    monkeypatch.setattr(drift, "ENGINES", ("mujoco",))  # one engine keeps it short
+    monkeypatch.setattr(sys, "argv", ["heading_drift.py", "throughput_walk", "--seeds", "2"])
+    drift.main()
+    printed = capsys.readouterr().out
+    assert "throughput_walk, 2 seeds at noise 0.1, nominal world" in printed
+    assert re.search(r"^mujoco: \|yaw\| half-way max .* falls [012]$", printed, re.MULTILINE)

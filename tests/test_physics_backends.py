@@ -3,6 +3,8 @@ joint signs of shared/nao-model.md §3."""
 
 from __future__ import annotations
 
+import dataclasses
+import gc
 import math
 from collections.abc import Iterator
 
@@ -11,7 +13,17 @@ import pybullet
 import pytest
 
 from metaopt.errors import ConfigError, EvaluationError
-from metaopt.physics import PhysicsBackend, PhysicsSettings
+from metaopt.physics import (
+    UNSTABLE_HEIGHT,
+    Body,
+    Hinge,
+    PhysicsBackend,
+    PhysicsSettings,
+    RobotDescription,
+    Shape,
+    check_root_height,
+    format_vector,
+)
 from metaopt.physics.agreement import engine, measure_friction
 from metaopt.plugins import registry
 from metaopt_problems.nao_walk.robot import nao
@@ -347,3 +359,137 @@ def test_the_feet_slide_at_the_force_friction_predicts(name: str, mu: float) -> 
     assert read.measured == pytest.approx(mu)
     assert slide.agrees, slide.describe()
     assert creep.agrees, creep.describe()
+
+
+def _steps_then_saved(sim: PhysicsBackend, steps: int = 5) -> object:
+    """The state after steps control periods at rest, saved."""
+    for _ in range(steps):
+        sim.step(sim.robot.rest_angles)
+    return sim.save_state()
+
+
+#: The instability every engine raises in the control period after the first five (one text).
+UNSTABLE_AT_0_12 = r"^(MuJoCo|PyBullet|ODE) simulation became unstable at t = 0\.120 s$"
+
+
+@pytest.mark.parametrize("name", ENGINES)
+def test_a_nan_force_is_an_evaluation_error_every_time(name: str) -> None:
+    """From the same saved state three times over, a NaN force on the torso raises each time,
+    naming the period's end. MuJoCo's automatic reset (mj_resetData) left its bad-qacc counter
+    at 1, so only the first raised and the others walked on from the reset pose; ODE's
+    dWorldStep aborted the whole process on the NaN load."""
+    with engine(name) as sim:
+        saved = _steps_then_saved(sim)
+        for _ in range(3):
+            sim.restore_state(saved)
+            sim.apply_force(sim.robot.root.name, (math.nan, 0.0, 0.0))
+            with pytest.raises(EvaluationError, match=UNSTABLE_AT_0_12):
+                sim.step(sim.robot.rest_angles)
+
+
+@pytest.mark.parametrize("name", ENGINES)
+def test_a_huge_push_is_an_evaluation_error_every_time(name: str) -> None:
+    """A push to 1e300 m/s raises every time; MuJoCo flags it as a bad qvel, which it did not
+    check at all (only bad qacc)."""
+    with engine(name) as sim:
+        saved = _steps_then_saved(sim)
+        for _ in range(3):
+            sim.restore_state(saved)
+            sim.push_root((1e300, 0.0, 0.0))
+            with pytest.raises(EvaluationError, match=UNSTABLE_AT_0_12):
+                sim.step(sim.robot.rest_angles)
+
+
+def test_check_root_height_raises_one_text_naming_the_engine() -> None:
+    """The shared instability check of the engines that do not flag it themselves."""
+    check_root_height("ODE", 0.385, 0.5)
+    check_root_height("ODE", -UNSTABLE_HEIGHT, 0.5)
+    for height in (math.nan, math.inf, -math.inf, UNSTABLE_HEIGHT * 1.01):
+        with pytest.raises(EvaluationError, match=r"^PyBullet simulation .* t = 0\.120 s$"):
+            check_root_height("PyBullet", height, 0.12)
+    assert format_vector((0.5, -1e-12, 1 / 3)) == "0.5 -1e-12 0.3333333333"
+
+
+def test_an_unknown_contact_body_is_refused_by_the_description() -> None:
+    """A misspelt contact body fails where the robot is described, not differently in each
+    engine (an MJCF error in MuJoCo, a KeyError in PyBullet and ODE)."""
+    with pytest.raises(ValueError, match="contact body 'lfot' is not one of the bodies"):
+        dataclasses.replace(nao(), contact_bodies=("lfot", "rfoot"))
+
+
+def test_hinges_with_one_name_are_refused_by_the_description() -> None:
+    """Two hinges of one name are refused up front (PyBullet's URDF import segfaults on them)."""
+    robot = nao()
+    hinges = (robot.hinges[0], dataclasses.replace(robot.hinges[1], name=robot.hinges[0].name))
+    with pytest.raises(ValueError, match="hinges must have unique names"):
+        dataclasses.replace(robot, hinges=hinges + robot.hinges[2:])
+
+
+def test_joint_angles_cannot_be_written_through(backend: PhysicsBackend) -> None:
+    """joint_angles is at most a live read-only view: PyBullet's was the writable buffer its
+    servo reads, so a caller's write steered the robot."""
+    for _ in range(2):
+        with pytest.raises(ValueError, match="read-only"):
+            backend.joint_angles()[0] = 1.0
+        backend.step(backend.robot.rest_angles)
+
+
+def _connected_pybullet_clients() -> set[int]:
+    """The PyBullet client ids connected in this process now."""
+    gc.collect()  # backends nobody closed disconnect as they are collected
+    return {i for i in range(64) if pybullet.isConnected(physicsClientId=i)}
+
+
+def test_a_failed_pybullet_construction_disconnects_its_client() -> None:
+    """A failure after connecting (here the ground friction reset() sets, which PyBullet
+    refuses) disconnects the new client before the error propagates."""
+    before = _connected_pybullet_clients()
+    with pytest.raises(TypeError):
+        registry().physics_backend("pybullet").factory(nao(), PhysicsSettings(friction=None))
+    assert _connected_pybullet_clients() == before
+
+
+def test_closing_a_pybullet_backend_twice_leaves_other_clients_alone() -> None:
+    """PyBullet reuses a freed client id: a second close (or one from the garbage collector)
+    of a closed backend must not disconnect the client a newer backend got."""
+    factory = registry().physics_backend("pybullet").factory
+    first = factory(nao(), PhysicsSettings())
+    first.save_state()
+    first.close()
+    second = factory(nao(), PhysicsSettings())
+    try:
+        first.close()
+        del first
+        second.step(second.robot.rest_angles)
+        assert second.time() == pytest.approx(0.02)
+    finally:
+        second.close()
+
+
+def _capsule_footed_robot() -> RobotDescription:
+    """A torso on one capsule foot: a contact body that is not a box."""
+    torso = Body("torso", None, Shape("box", (0.1, 0.1, 0.2)), 1.0, (0.0, 0.0, 0.0), True)
+    foot = Body("foot", "torso", Shape("capsule", (0.02, 0.1)), 0.2, (0.0, 0.0, -0.2), True)
+    ankle = Hinge("ankle", "torso", "foot", (0.0, 0.0, -0.1), (0.0, 1.0, 0.0), -1.0, 1.0)
+    return RobotDescription("capsule", (torso, foot), (ankle,), ("foot",), 0.33)
+
+
+@pytest.mark.parametrize("robot", [nao(), _capsule_footed_robot()], ids=["nao", "capsule"])
+def test_mujoco_touch_sites_are_their_geoms_plus_the_margin(robot: RobotDescription) -> None:
+    """Each contact body's touch site is its geom grown by TOUCH_MARGIN all round; a capsule's
+    site was given the full cylinder length where MuJoCo takes half, twice too long."""
+    from metaopt_problems.physics.mujoco_engine import TOUCH_MARGIN, MujocoBackend
+
+    sim = MujocoBackend(robot, PhysicsSettings())
+    try:
+        model = sim.model
+        for name in robot.contact_bodies:
+            geom = int(np.flatnonzero(model.geom_bodyid == model.body(name).id)[0])
+            site = model.site("touch_" + name).id
+            assert model.site_type[site] == model.geom_type[geom]
+            used = {"box": 3, "sphere": 1, "capsule": 2}[robot.body(name).shape.kind]
+            assert model.site_size[site][:used] == pytest.approx(
+                model.geom_size[geom][:used] + TOUCH_MARGIN, abs=1e-12
+            )
+    finally:
+        sim.close()

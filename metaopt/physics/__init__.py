@@ -10,7 +10,7 @@ from __future__ import annotations
 import importlib.metadata
 import math
 from abc import ABC, abstractmethod
-from collections.abc import Callable
+from collections.abc import Callable, Iterable
 from dataclasses import dataclass, replace
 from typing import Any
 
@@ -125,6 +125,8 @@ class RobotDescription:
     start_height: float
 
     def __post_init__(self) -> None:
+        """Refuse a malformed robot here, naming what is wrong, rather than letting each engine
+        fail on it in its own way (a parse error, a KeyError, a crash)."""
         names = [b.name for b in self.bodies]
         if len(set(names)) != len(names) or self.bodies[0].parent is not None:
             raise ValueError("bodies must have unique names, root first")
@@ -133,12 +135,18 @@ class RobotDescription:
             if body.parent not in seen:
                 raise ValueError(f"body {body.name!r} comes before its parent {body.parent!r}")
             seen.add(body.name)
+        hinge_names = [h.name for h in self.hinges]
+        if len(set(hinge_names)) != len(hinge_names):  # PyBullet's URDF import crashes on it
+            raise ValueError("hinges must have unique names")
         children = sorted(h.child for h in self.hinges)
         if children != sorted(names[1:]):
             raise ValueError("every non-root body needs exactly one hinge to its parent")
         for h in self.hinges:
             if self.body(h.child).parent != h.parent or not h.lower <= h.rest <= h.upper:
                 raise ValueError(f"hinge {h.name!r}: wrong parent or rest angle outside limits")
+        for name in self.contact_bodies:
+            if name not in names:
+                raise ValueError(f"contact body {name!r} is not one of the bodies")
 
     @property
     def root(self) -> Body:
@@ -222,6 +230,29 @@ def servo_velocities(
     if not math.isfinite(out.sum()):
         raise EvaluationError("joint targets are not finite numbers (the controller diverged)")
     return np.clip(out, -settings.max_joint_speed, settings.max_joint_speed, out=out)
+
+
+def format_vector(values: Iterable[float]) -> str:
+    """Numbers as an MJCF or URDF attribute takes them: space-separated, 10 significant digits
+    (the one format of every generated model, so its text stays the same byte for byte)."""
+    return " ".join(f"{v:.10g}" for v in values)
+
+
+#: A root body's centre farther than this from the ground (m) means the simulation blew up.
+UNSTABLE_HEIGHT = 1e3
+
+
+def instability_error(engine: str, time: float) -> EvaluationError:
+    """The error an engine raises when its simulation became unstable at time (s): one text
+    for every engine, naming it."""
+    return EvaluationError(f"{engine} simulation became unstable at t = {time:.3f} s")
+
+
+def check_root_height(engine: str, height: float, time: float) -> None:
+    """Raise instability_error(engine, time) when the root's height (m) is not finite or beyond
+    UNSTABLE_HEIGHT: how engines that do not flag instability themselves detect it."""
+    if not math.isfinite(height) or abs(height) > UNSTABLE_HEIGHT:
+        raise instability_error(engine, time)
 
 
 class PhysicsBackend(ABC):

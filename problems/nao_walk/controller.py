@@ -160,11 +160,6 @@ class MatsuokaPair:
         """The elements' outputs y1 = [x1]+, y2 = [x2]+ after the last step."""
         return max(self.x1, 0.0), max(self.x2, 0.0)
 
-    @property
-    def n_substeps(self) -> int:
-        """Integration substeps per control step (1 for tau >= 4 steps, 8 at TAU_MIN)."""
-        return self._n_substeps
-
     def advance(self, drive1: float, drive2: float) -> tuple[float, float]:
         """One control step with the elements' tonic drives (c plus feedback) held; returns the
         outputs (y1, y2)."""
@@ -224,11 +219,6 @@ class MatsuokaCpg:
     def outputs(self) -> tuple[float, float]:
         """The elements' outputs y1 = [x1]+, y2 = [x2]+ (left, right) after the last step."""
         return self._pair.outputs
-
-    @property
-    def n_substeps(self) -> int:
-        """Integration substeps per control step (1 for tau >= 4 steps, 8 at TAU_MIN)."""
-        return self._pair.n_substeps
 
     def act(self, sensors: Sensors) -> tuple[float, float, float, float, float, float]:
         """The Gait interface (episode.py): step() on the sensed hip angles."""

@@ -249,6 +249,12 @@ def fitness(
     return score
 
 
+def control_steps(seconds: float, period: float) -> int:
+    """The whole control steps nearest to ``seconds`` (how the runner counts a phase's length
+    and places a push), so that nao-walk can check its settings exactly as the runner will."""
+    return round(seconds / period)
+
+
 class EpisodeRunner:
     """Runs episodes on one backend, reusing the simulated lock phase where that is exact."""
 
@@ -257,8 +263,8 @@ class EpisodeRunner:
         self.settings = settings
         robot = backend.robot
         period = backend.settings.control_period
-        self._lock_steps = round(settings.lock / period)
-        self._walk_steps = round((settings.duration - settings.lock) / period)
+        self._lock_steps = control_steps(settings.lock, period)
+        self._walk_steps = control_steps(settings.duration - settings.lock, period)
         self._period = period
         self._indices: dict[tuple[str, ...], list[int]] = {}
         self._feedback = [robot.joint_index(name) for name in FEEDBACK_JOINTS]
@@ -276,7 +282,7 @@ class EpisodeRunner:
         for a push outside the walking phase."""
         if push is None or push.impulse == 0:
             return -1, (0.0, 0.0, 0.0)
-        step = round((push.time - self.settings.lock) / self._period)
+        step = control_steps(push.time - self.settings.lock, self._period)
         if not 0 <= step < self._walk_steps:
             raise ValueError(
                 f"the push at {push.time} s is outside the walking phase "
@@ -288,6 +294,15 @@ class EpisodeRunner:
     def walk_steps(self) -> int:
         """Control steps in the walking phase (the length a Disturbance must cover)."""
         return self._walk_steps
+
+    @property
+    def lock_state(self) -> Any | None:
+        """The saved end of the lock phase the next episode's walking phase starts from, for
+        replays that must start where the episodes do (read only: restore it, never change it);
+        None before the first episode, or where the backend does not restore exactly."""
+        if self._after_lock is None or self._after_lock[0] != self.lock_key:
+            return None
+        return self._after_lock[1]
 
     @property
     def lock_key(self) -> Hashable:

@@ -201,11 +201,6 @@ class ExtendedCpg:
     def _configure(self, values: Mapping[str, float]) -> None:
         """Read the parameters a subclass adds (none here)."""
 
-    @property
-    def pair(self) -> MatsuokaPair:
-        """The rhythm generator."""
-        return self._pair
-
     def reset(self) -> None:
         """Back to the initial state (the rhythm's, and the start of the ramp)."""
         self._pair.reset()

@@ -36,11 +36,13 @@ from .controller import MatsuokaCpg, cpg_space
 from .episode import (
     FITNESS_KINDS,
     FLIGHT_ALLOWED,
+    FRICTION_SPREAD,
     Disturbance,
     EpisodeRunner,
     EpisodeSettings,
     Gait,
     Push,
+    control_steps,
     fitness,
 )
 from .extended import (
@@ -209,6 +211,41 @@ def _check_push_window(push: float, lock: float, duration: float) -> None:
         )
 
 
+def _check_push_time(push_time: float, lock: float, duration: float) -> None:
+    """ConfigError for a push_time outside the walking phase once rounded, as the runner rounds
+    it, to the nearest control step: from lock to the start of the walking phase's last step."""
+    period = PhysicsSettings().control_period
+    walking = duration - lock
+    last = control_steps(walking, period) - 1 if math.isfinite(walking) else None
+    if (
+        last is not None
+        and lock <= push_time < duration
+        and 0 <= control_steps(push_time - lock, period) <= last
+    ):
+        return
+    latest = "before duration"
+    if last is not None and last >= 0:
+        latest = f"{lock + last * period:g} s, the last step's start"
+    raise ConfigError(
+        f"nao-walk: push_time ({push_time} s) must fall within the walking phase: a push acts in "
+        f"the {period * 1000:g} ms control step nearest to it, so it is accepted from lock "
+        f"({lock} s) to {latest} (duration {duration} s)"
+    )
+
+
+def _check_noisy_friction(engine: str, friction: float, noise: float, max_friction: float) -> None:
+    """ConfigError where the noise can draw a ground friction above what the engine handles
+    (Disturbance.draw multiplies the nominal friction by up to exp(FRICTION_SPREAD * noise))."""
+    highest = friction * math.exp(FRICTION_SPREAD * abs(noise))
+    if highest > max_friction:
+        raise ConfigError(
+            f"nao-walk: noise {noise:g} draws ground frictions up to {highest:.4g} (friction "
+            f"{friction:g} x exp({FRICTION_SPREAD:g} x {noise:g})), more than the {engine} "
+            f"backend handles (at most {max_friction:g}); lower noise, friction or "
+            "friction_scale, or use another backend"
+        )
+
+
 def _cell_indices(world_cells: str, worlds: str) -> tuple[int, ...]:
     """The standard table's cells world_cells names, as indices in table order (every cell
     when empty), each repeated as often as it is named, so that a cell named twice is drawn
@@ -298,17 +335,16 @@ class NaoWalk(Problem):
         engine_cap: float = 0.0,
         screen_engines: str = "",
     ) -> None:
+        """Check every parameter up front (a one-line ConfigError, not a failure in every
+        evaluation) and keep them; each engine is built on first use."""
         #: every parameter, to build the perturbed worlds from (worlds=standard)
         self._params = {k: v for k, v in locals().items() if k not in ("self", "__class__")}
         if lock >= duration:
             raise ConfigError(
                 f"nao-walk: lock ({lock} s) must be shorter than duration ({duration} s)"
             )
-        if push and not lock <= push_time < duration:
-            raise ConfigError(
-                f"nao-walk: push_time ({push_time} s) must fall within the walking phase, "
-                f"from lock ({lock} s) to before duration ({duration} s)"
-            )
+        if push:
+            _check_push_time(push_time, lock, duration)
         self.engines = engine_names(backend)
         #: ConfigError for an engine that is not installed, listing the installed ones
         self.backend_infos = {name: registry().physics_backend(name) for name in self.engines}
@@ -323,6 +359,7 @@ class NaoWalk(Problem):
                     f"nao-walk: friction {mu} is more than the {name} backend handles "
                     f"(at most {info.max_friction}); use a smaller one or another backend"
                 )
+            _check_noisy_friction(name, mu, noise, info.max_friction)
             self.physics_on[name] = PhysicsSettings(
                 substeps=substeps, servo_gain=servo_gain, friction=mu, slip=slip
             )
@@ -335,6 +372,7 @@ class NaoWalk(Problem):
         self.controller = controller
         kind = CONTROLLER_KINDS[controller]
         self.space = cpg_space(weight_scale) if controller == "paper" else kind.space()
+        _require_choice("fitness", fitness, FITNESS_KINDS)
         self.fitness_kind = fitness
         #: the first engine's physics settings
         self.physics = self.physics_on[self.engines[0]]
@@ -363,7 +401,14 @@ class NaoWalk(Problem):
         self.cell_durations = _cell_durations(cell_durations, self.world_cells, lock)
         self._worlds: dict[int, NaoWalk] = {}
         for cell in self.world_cells:
-            self._world(cell).close()  # a world refusing its parameters says so now
+            try:
+                self._world(cell).close()  # a world refusing its parameters says so now
+            except ConfigError as error:  # naming the cell: its parameters are not the given
+                reason = str(error).removeprefix("nao-walk: ")
+                raise ConfigError(
+                    f"nao-walk: in the cell {STANDARD_TABLE.cells[cell].name!r} that "
+                    f"worlds={worlds} draws: {reason}"
+                ) from None
             del self._worlds[cell]
 
     def _screen_engines(self, given: str) -> tuple[str, ...]:

@@ -27,8 +27,6 @@ NAO_NAMES: dict[str, str] = {
 START_HEIGHT = 0.40
 #: Floor to top of head with all joints 0 (nao-model.md §4).
 STANDING_HEIGHT = 0.605
-#: Torso centre above the floor when the soles touch it with straight legs.
-TORSO_HEIGHT = 0.385
 #: Shoulder pitch rest angle: arms hang down instead of pointing forward.
 ARMS_DOWN = -math.pi / 2
 

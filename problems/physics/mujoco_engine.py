@@ -30,17 +30,21 @@ if sys.platform.startswith("linux") and "MUJOCO_GL" not in os.environ:
 import mujoco
 import numpy as np
 
-from metaopt.errors import EvaluationError, MetaoptError
+from metaopt.errors import MetaoptError
 from metaopt.physics import (
     CAMERA_AZIMUTH,
     CAMERA_DISTANCE,
     CAMERA_ELEVATION,
     CAMERA_FOVY,
     ROBOT_RGBA,
+    Body,
     PhysicsBackend,
     PhysicsSettings,
     RobotDescription,
+    Shape,
     Vec3,
+    format_vector,
+    instability_error,
     servo_velocities,
 )
 from metaopt_problems.physics.mujoco_backend import DEFAULT_SUBSTEPS
@@ -62,31 +66,41 @@ ARMATURE = 0.02
 #: half the penetration (millimetres) of the surfaces, so the site holds every contact of the foot.
 TOUCH_MARGIN = 0.01
 _STATE = mujoco.mjtState.mjSTATE_INTEGRATION
+#: The warnings mj_step raises when it finds a non-finite or huge qpos, qvel or qacc; it then
+#: resets the data (mj_resetData, which zeroes every counter) and counts the warning again.
+_UNSTABLE = [
+    int(mujoco.mjtWarning.mjWARN_BADQACC),
+    int(mujoco.mjtWarning.mjWARN_BADQVEL),
+    int(mujoco.mjtWarning.mjWARN_BADQPOS),
+]
 
 
-def _vec(values) -> str:
-    return " ".join(f"{v:.10g}" for v in values)
-
-
-def _geom(body, with_collision: bool) -> str:
-    shape = body.shape
+def _size(shape: Shape) -> list[float]:
+    """MuJoCo's size of a shape: half edges (box), radius (sphere), radius and half the
+    cylinder length (capsule); the description gives full lengths. Geoms and sites share it."""
     if shape.kind == "box":
-        size = [s / 2 for s in shape.size]
-    elif shape.kind == "sphere":
-        size = list(shape.size)
-    else:
-        size = [shape.size[0], shape.size[1] / 2]
+        return [s / 2 for s in shape.size]
+    if shape.kind == "sphere":
+        return list(shape.size)
+    return [shape.size[0], shape.size[1] / 2]
+
+
+def _geom(body: Body, with_collision: bool) -> str:
+    """The geom of body: colliding with the floor (group 0) or a mass carrier drawn only
+    (group 1)."""
+    shape = body.shape
     collide = 'contype="1" conaffinity="0"' if with_collision else 'contype="0" conaffinity="0"'
     group = 0 if with_collision else 1
-    return f'<geom type="{shape.kind}" size="{_vec(size)}" {collide} group="{group}"/>'
+    return (
+        f'<geom type="{shape.kind}" size="{format_vector(_size(shape))}" {collide} '
+        f'group="{group}"/>'
+    )
 
 
-def _touch_site(body) -> str:
+def _touch_site(body: Body) -> str:
     """A site TOUCH_MARGIN larger than body's geom all round, for its touch sensor."""
-    shape = body.shape
-    half = [s / 2 for s in shape.size] if shape.kind == "box" else list(shape.size)
-    size = [h + TOUCH_MARGIN for h in half]
-    return f'<site name={quoteattr("touch_" + body.name)} type="{shape.kind}" size="{_vec(size)}"/>'
+    size = format_vector(s + TOUCH_MARGIN for s in _size(body.shape))
+    return f'<site name={quoteattr("touch_" + body.name)} type="{body.shape.kind}" size="{size}"/>'
 
 
 def mjcf(robot: RobotDescription, settings: PhysicsSettings) -> str:
@@ -95,20 +109,21 @@ def mjcf(robot: RobotDescription, settings: PhysicsSettings) -> str:
     for body in robot.bodies[1:]:
         children.setdefault(body.parent, []).append(body)
 
-    def body_xml(body, parent_center) -> str:
+    def body_xml(body: Body, parent_center: Vec3) -> str:
+        """The MJCF of body and its subtree, placed relative to its parent's centre."""
         pos = [c - p for c, p in zip(body.center, parent_center, strict=True)]
-        parts = [f'<body name={quoteattr(body.name)} pos="{_vec(pos)}">']
+        parts = [f'<body name={quoteattr(body.name)} pos="{format_vector(pos)}">']
         if body.parent is None:
             parts.append('<freejoint name="root"/>')
         else:
             h = robot.hinge_of(body.name)
             anchor = [a - c for a, c in zip(h.anchor, body.center, strict=True)]
             parts.append(
-                f'<joint name={quoteattr(h.name)} pos="{_vec(anchor)}" axis="{_vec(h.axis)}" '
-                f'range="{h.lower:.10g} {h.upper:.10g}"/>'
+                f'<joint name={quoteattr(h.name)} pos="{format_vector(anchor)}" '
+                f'axis="{format_vector(h.axis)}" range="{h.lower:.10g} {h.upper:.10g}"/>'
             )
         parts.append(f'<inertial pos="0 0 0" mass="{body.mass:.10g}" '
-                     f'diaginertia="{_vec(body.inertia)}"/>')  # fmt: skip
+                     f'diaginertia="{format_vector(body.inertia)}"/>')  # fmt: skip
         parts.append(_geom(body, body.collides))
         if body.name in robot.contact_bodies:
             parts.append(_touch_site(body))
@@ -132,7 +147,7 @@ def mjcf(robot: RobotDescription, settings: PhysicsSettings) -> str:
 <option timestep="{settings.timestep(DEFAULT_SUBSTEPS):.10g}" integrator="implicitfast"
         gravity="0 0 -9.81"/>
 <default><joint armature="{ARMATURE}" limited="true"/>
-<geom friction="{mu} 0.005 0.0001" rgba="{_vec(ROBOT_RGBA)}"/></default>
+<geom friction="{mu} 0.005 0.0001" rgba="{format_vector(ROBOT_RGBA)}"/></default>
 <visual><headlight ambient="0.6 0.6 0.6" diffuse="0.5 0.5 0.5" specular="0 0 0"/></visual>
 <asset>
 <texture name="sky" type="skybox" builtin="gradient" rgb1="1 1 1" rgb2="0.85 0.9 1"
@@ -161,6 +176,7 @@ class MujocoBackend(PhysicsBackend):
     restores_exactly = True
 
     def __init__(self, robot: RobotDescription, settings: PhysicsSettings) -> None:
+        """Compile the robot's MJCF, keep live views of the data it reads, and reset."""
         super().__init__(robot, settings)
         self.model = mujoco.MjModel.from_xml_string(mjcf(robot, settings))
         self.data = mujoco.MjData(self.model)
@@ -173,7 +189,8 @@ class MujocoBackend(PhysicsBackend):
         self._root_position = self.data.qpos[0:3]
         self._root_quaternion = self.data.qpos[3:7]
         self._rotation = np.zeros(9)
-        self._bad = self.data.warning[mujoco.mjtWarning.mjWARN_BADQACC]
+        #: mj_step's warning counters (a live view), of which _UNSTABLE flag an instability
+        self._warnings = self.data.warning.number
         #: each foot's touch sensor in sensordata (the sensors are the feet's, in order)
         self._touch = self.data.sensordata[: len(robot.contact_bodies)]
         #: the feet's normal forces, the mean over the last control period's physics steps
@@ -187,6 +204,7 @@ class MujocoBackend(PhysicsBackend):
         self.reset()
 
     def reset(self) -> None:
+        """The rest pose at t = 0; mj_resetData also zeroes the warning counters."""
         mujoco.mj_resetData(self.model, self.data)
         self.data.qpos[2] = self.robot.start_height
         self._angles[:] = self.robot.rest_angles
@@ -194,19 +212,21 @@ class MujocoBackend(PhysicsBackend):
         self.set_ground_friction(self.settings.friction)
 
     def step(self, joint_targets: np.ndarray) -> None:
+        """One control period; raises EvaluationError when mj_step flags a bad qpos, qvel or
+        qacc (counted from zero each period: its automatic reset leaves a counter at 1)."""
         servo_velocities(joint_targets, self._angles, self.settings, self._command)
         self.data.ctrl[:] = self._command
-        unstable_before = self._bad.number
+        warnings = self._warnings
+        warnings[_UNSTABLE] = 0
+        start = self.data.time  # the automatic reset puts data.time back to 0
         mean = self._contact_mean
         mean[:] = 0.0
         for _ in range(self._substeps):
             mujoco.mj_step(self.model, self.data)
             mean += self._touch
         mean /= self._substeps
-        if self._bad.number != unstable_before:
-            raise EvaluationError(
-                f"MuJoCo simulation became unstable at t = {self.data.time:.3f} s"
-            )
+        if warnings[_UNSTABLE].any():
+            raise instability_error("MuJoCo", start + self.settings.control_period)
 
     def joint_angles(self) -> np.ndarray:
         return self._angles_view
@@ -275,8 +295,11 @@ class MujocoBackend(PhysicsBackend):
         return state, self._contact_mean.copy()
 
     def restore_state(self, state: Any) -> None:
+        """Back to a saved state, with no instability counted (mj_setState keeps the warning
+        counters, which are not part of the state)."""
         integration, self._contact_mean[:] = state
         mujoco.mj_setState(self.model, self.data, integration, _STATE)
+        self._warnings[_UNSTABLE] = 0
         mujoco.mj_forward(self.model, self.data)
 
     def render(self, width: int, height: int, camera_target: Vec3) -> np.ndarray:

@@ -24,7 +24,6 @@ dVector3 = dReal * 4  # ODE pads 3-vectors to 4
 dMatrix3 = dReal * 12
 
 # dContact mode flags (ode/contact.h)
-CONTACT_BOUNCE = 0x004
 CONTACT_SOFT_ERP = 0x008
 CONTACT_SOFT_CFM = 0x010
 CONTACT_SLIP1 = 0x100

@@ -21,13 +21,14 @@ from typing import Any
 
 import numpy as np
 
-from metaopt.errors import EvaluationError
 from metaopt.physics import (
     PhysicsBackend,
     PhysicsSettings,
     RobotDescription,
     Shape,
     Vec3,
+    check_root_height,
+    instability_error,
     servo_velocities,
 )
 from metaopt_problems.physics.ode_backend import DEFAULT_SUBSTEPS
@@ -141,11 +142,13 @@ class OdeBackend(PhysicsBackend):
     restores_exactly = True
 
     def __init__(self, robot: RobotDescription, settings: PhysicsSettings) -> None:
+        """Build the world, the robot's bodies, geoms and hinges (construction pose, then the
+        rest pose) and the contact templates, and reset."""
         super().__init__(robot, settings)
         self._ode = lib = ode()
         lib.dAllocateODEDataForThread(ALLOCATE_COLLISION_DATA)  # ODE's per-thread data
         self._substeps = settings.substeps or DEFAULT_SUBSTEPS
-        self._h = settings.control_period / self._substeps
+        self._h = settings.timestep(DEFAULT_SUBSTEPS)
         self._world = world = lib.dWorldCreate()
         lib.dWorldSetGravity(world, 0.0, 0.0, GRAVITY)
         lib.dWorldSetCFM(world, WORLD_CFM)
@@ -303,6 +306,8 @@ class OdeBackend(PhysicsBackend):
     # --- stepping ------------------------------------------------------------------------
 
     def step(self, joint_targets: np.ndarray) -> None:
+        """One control period: motor targets set once, then the physics steps; raises
+        EvaluationError when the root has left the finite world (ODE flags nothing itself)."""
         servo_velocities(joint_targets, self._angles, self.settings, self._command)
         set_param = self._ode.dJointSetHingeParam
         for joint, velocity in zip(self._joints, self._command.tolist()):
@@ -319,9 +324,7 @@ class OdeBackend(PhysicsBackend):
         self._steps += 1
         self._readings = None
         self._read_angles()
-        z = self._position[0][2]
-        if not math.isfinite(z) or abs(z) > 1e3:
-            raise EvaluationError(f"ODE simulation became unstable at t = {self.time():.3f} s")
+        check_root_height("ODE", self._position[0][2], self.time())
 
     def _physics_step(self) -> None:
         """Drag and applied forces, ground contacts, one dWorldStep (the server's order)."""
@@ -329,6 +332,8 @@ class OdeBackend(PhysicsBackend):
         drag = np.concatenate(self._velocities).reshape(-1, 3)
         drag *= -DRAG
         drag += self._applied
+        if not np.isfinite(drag).all():  # dWorldStep would abort the whole process on it
+            raise instability_error("ODE", (self._steps + 1) * self.settings.control_period)
         for accumulator, load in zip(self._accumulators, drag):
             accumulator[:] = load
         collide, create, attach = lib.dCollide, lib.dJointCreateContact, lib.dJointAttach

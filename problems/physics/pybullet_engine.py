@@ -21,7 +21,6 @@ from xml.sax.saxutils import quoteattr
 
 import numpy as np
 
-from metaopt.errors import EvaluationError
 from metaopt.physics import (
     CAMERA_AZIMUTH,
     CAMERA_DISTANCE,
@@ -33,6 +32,8 @@ from metaopt.physics import (
     PhysicsSettings,
     RobotDescription,
     Vec3,
+    check_root_height,
+    format_vector,
     servo_velocities,
 )
 from metaopt_problems.physics.pybullet_backend import (
@@ -65,14 +66,11 @@ def _import_quietly() -> ModuleType:
 pybullet = _import_quietly()
 
 
-def _vec(values) -> str:
-    return " ".join(f"{v:.10g}" for v in values)
-
-
 def _geometry(body: Body) -> str:
+    """The URDF geometry of body's shape (URDF takes full box edges and capsule lengths)."""
     shape = body.shape
     if shape.kind == "box":
-        return f'<box size="{_vec(shape.size)}"/>'
+        return f'<box size="{format_vector(shape.size)}"/>'
     if shape.kind == "sphere":
         return f'<sphere radius="{shape.size[0]:.10g}"/>'
     return f'<capsule radius="{shape.size[0]:.10g}" length="{shape.size[1]:.10g}"/>'
@@ -89,7 +87,7 @@ def urdf(robot: RobotDescription) -> str:
         origin[h.child] = h.anchor
     parts = [f"<robot name={quoteattr(robot.name)}>"]
     for body in robot.bodies:
-        at = _vec(c - o for c, o in zip(body.center, origin[body.name], strict=True))
+        at = format_vector(c - o for c, o in zip(body.center, origin[body.name], strict=True))
         ixx, iyy, izz = body.inertia
         parts.append(
             f'<link name={quoteattr(body.name)}><inertial><origin xyz="{at}"/>'
@@ -102,11 +100,11 @@ def urdf(robot: RobotDescription) -> str:
             )
         parts.append("</link>")
     for h in robot.hinges:
-        offset = _vec(a - o for a, o in zip(h.anchor, origin[h.parent], strict=True))
+        offset = format_vector(a - o for a, o in zip(h.anchor, origin[h.parent], strict=True))
         parts.append(
             f'<joint name={quoteattr(h.name)} type="revolute">'
             f"<parent link={quoteattr(h.parent)}/><child link={quoteattr(h.child)}/>"
-            f'<origin xyz="{offset}"/><axis xyz="{_vec(h.axis)}"/>'
+            f'<origin xyz="{offset}"/><axis xyz="{format_vector(h.axis)}"/>'
             f'<limit lower="{h.lower:.10g}" upper="{h.upper:.10g}" effort="10" velocity="10"/>'
             "</joint>"
         )
@@ -120,13 +118,24 @@ class PybulletBackend(PhysicsBackend):
     restores_exactly = True
 
     def __init__(self, robot: RobotDescription, settings: PhysicsSettings) -> None:
+        """Connect a DIRECT client and build the robot in it; a failure on the way
+        disconnects the client again (and re-raises)."""
         super().__init__(robot, settings)
-        self._client = pybullet.connect(pybullet.DIRECT)
-        substeps = settings.substeps or DEFAULT_SUBSTEPS
-        self._substeps = substeps
+        #: the ids of the Bullet states save_state made, freed by close()
+        self._saved_states: list[int] = []
+        self._client: int | None = pybullet.connect(pybullet.DIRECT)
         self._call = dict(physicsClientId=self._client)
+        try:
+            self._build(robot, settings)
+        except BaseException:
+            self.close()
+            raise
+
+    def _build(self, robot: RobotDescription, settings: PhysicsSettings) -> None:
+        """The world and the robot in the connected client, then reset."""
+        self._substeps = settings.substeps or DEFAULT_SUBSTEPS
         pybullet.setGravity(0, 0, -9.81, **self._call)
-        pybullet.setTimeStep(settings.control_period / substeps, **self._call)
+        pybullet.setTimeStep(settings.timestep(DEFAULT_SUBSTEPS), **self._call)
         pybullet.setPhysicsEngineParameter(numSolverIterations=SOLVER_ITERATIONS, **self._call)
         plane = pybullet.createCollisionShape(pybullet.GEOM_PLANE, **self._call)
         self._plane = pybullet.createMultiBody(0, plane, **self._call)
@@ -156,6 +165,8 @@ class PybulletBackend(PhysicsBackend):
             pybullet.changeVisualShape(self._robot, link, rgbaColor=ROBOT_RGBA, **self._call)
         n = len(robot.hinges)
         self._angles = np.zeros(n)
+        self._angles_view = self._angles.view()  # what joint_angles gives: read-only, live
+        self._angles_view.flags.writeable = False
         self._command = np.zeros(n)
         self._forces = [settings.max_joint_torque] * n
         self._steps = 0
@@ -190,6 +201,8 @@ class PybulletBackend(PhysicsBackend):
         self._pose = pybullet.getBasePositionAndOrientation(self._robot, **self._call)
 
     def step(self, joint_targets: np.ndarray) -> None:
+        """One control period of substeps stepSimulation calls; raises EvaluationError when
+        the root has left the finite world (Bullet flags nothing itself)."""
         servo_velocities(joint_targets, self._angles, self.settings, self._command)
         pybullet.setJointMotorControlArray(
             self._robot, self._joints, pybullet.VELOCITY_CONTROL,
@@ -207,11 +220,11 @@ class PybulletBackend(PhysicsBackend):
         self._contact_mean = total / self._substeps
         self._steps += 1
         self._read()
-        if not np.isfinite(self._pose[0][2]) or abs(self._pose[0][2]) > 1e3:
-            raise EvaluationError(f"PyBullet simulation became unstable at t = {self.time():.3f} s")
+        check_root_height("PyBullet", self._pose[0][2], self.time())
 
     def joint_angles(self) -> np.ndarray:
-        return self._angles
+        """The measured angles as a live read-only view (the servo reads the buffer behind it)."""
+        return self._angles_view
 
     def root_position(self) -> np.ndarray:
         return np.asarray(self._pose[0])
@@ -285,10 +298,10 @@ class PybulletBackend(PhysicsBackend):
         pybullet.resetBaseVelocity(self._robot, pushed, angular, **self._call)
 
     def save_state(self) -> Any:
-        return (
-            pybullet.saveState(**self._call), self._steps, dict(self._external),
-            self._contact_mean.copy(),
-        )  # fmt: skip
+        """A snapshot; its Bullet in-memory state lives until close() (restorable until then)."""
+        state_id = pybullet.saveState(**self._call)
+        self._saved_states.append(state_id)
+        return state_id, self._steps, dict(self._external), self._contact_mean.copy()
 
     def restore_state(self, state: Any) -> None:
         state_id, self._steps, external, contact_mean = state
@@ -310,5 +323,18 @@ class PybulletBackend(PhysicsBackend):
         return np.reshape(rgba, (height, width, 4))[:, :, :3].astype(np.uint8)
 
     def close(self) -> None:
-        if pybullet.isConnected(self._client):
-            pybullet.disconnect(self._client)
+        """Free the saved states and disconnect the client, once: PyBullet reuses a freed
+        client id, so neither a second close nor a later call may reach another backend's."""
+        client, self._client = self._client, None
+        self._call["physicsClientId"] = -1  # PyBullet: "Not connected to physics server"
+        if client is None or not pybullet.isConnected(physicsClientId=client):
+            return
+        for state_id in self._saved_states:
+            pybullet.removeState(state_id, physicsClientId=client)
+        self._saved_states.clear()
+        pybullet.disconnect(physicsClientId=client)
+
+    def __del__(self) -> None:
+        """Disconnect a client nobody closed (the ODE backend frees its world alike)."""
+        if getattr(self, "_client", None) is not None:
+            self.close()
