@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import difflib
+import math
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from typing import Any
@@ -19,7 +20,8 @@ class Param:
     """One parameter a plugin accepts.
 
     ``low``/``high`` bound numbers (inclusive unless ``low_open``/``high_open``), ``choices``
-    restricts strings. ``default`` must itself be valid.
+    restricts strings. ``default`` must itself be valid. A float is finite unless ``infinite``
+    (e.g. a friction of inf = no sliding limit); NaN never is a value.
     """
 
     name: str
@@ -31,6 +33,7 @@ class Param:
     low_open: bool = False
     high_open: bool = False
     choices: tuple[str, ...] | None = None
+    infinite: bool = False
 
     def __post_init__(self) -> None:
         if self.type not in _TYPES:
@@ -47,10 +50,13 @@ class Param:
             return "one of " + ", ".join(self.choices)
         if self.type is bool:
             return "true or false"
+        finite = self.type is float and not self.infinite
         if self.low is None and self.high is None:
-            return f"any {self.type_name}"
-        left = "(" if self.low_open else "["
-        right = ")" if self.high_open else "]"
+            return f"any {'finite ' if finite else ''}{self.type_name}"
+        # an unbounded side is open: inf itself is a value only of an ``infinite`` parameter
+        closed_low = self.infinite if self.low is None else not self.low_open
+        closed_high = self.infinite if self.high is None else not self.high_open
+        left, right = "[" if closed_low else "(", "]" if closed_high else ")"
         low = "-inf" if self.low is None else _fmt(self.low)
         high = "inf" if self.high is None else _fmt(self.high)
         return f"an {self.type_name} in {left}{low}, {high}{right}".replace("an float", "a float")
@@ -98,8 +104,8 @@ class Param:
         if self.choices is not None and value not in self.choices:
             raise bad
         if self.type in (int, float):
-            if value != value:  # NaN
-                raise bad
+            if value != value or (abs(value) == math.inf and not self.infinite):
+                raise bad  # NaN, or inf where the parameter takes only finite values
             if self.low is not None and (value < self.low or (self.low_open and value == self.low)):
                 raise bad
             if self.high is not None and (

@@ -5,6 +5,8 @@ from __future__ import annotations
 from collections.abc import Iterable
 from typing import Any
 
+import click
+
 from metaopt.errors import ConfigError
 from metaopt.optimizer import OptimizerInfo
 from metaopt.params import Param, suggest
@@ -26,6 +28,7 @@ def split_settings(
     problem_params: dict[str, Any] = {}
     optimizer_decl = {p.name: p for p in optimizer.params}
     problem_decl = {p.name: p for p in problem.params}
+    given: dict[tuple[str, str], str] = {}
     for pair in pairs:
         name, sep, text = pair.partition("=")
         name = name.strip()
@@ -39,6 +42,7 @@ def split_settings(
             else (problem_decl, problem_params, f"problem {problem.name!r}")
         )
         param: Param = declared[bare]
+        _once(given, target, name, text.strip())
         params[bare] = param.parse(text.strip(), owner)
     return optimizer_params, problem_params
 
@@ -47,17 +51,33 @@ def parse_problem_settings(pairs: Iterable[str], problem: ProblemInfo) -> dict[s
     """Parse NAME=VALUE strings into problem parameters only (for replays)."""
     declared = {p.name: p for p in problem.params}
     params: dict[str, Any] = {}
+    given: dict[tuple[str, str], str] = {}
     for pair in pairs:
         name, sep, text = pair.partition("=")
         if not sep or not name.strip():
             raise ConfigError(
                 f"--set expects NAME=VALUE, got {pair!r} (e.g. --set backend=pybullet)"
             )
+        written = name = name.strip()
         for prefix in (*_PROBLEM_PREFIXES, f"{problem.name}."):
             name = name.strip().removeprefix(prefix)
         _must_declare("problem", problem.name, name, declared)
+        _once(given, ("problem", name), written, text.strip())
         params[name] = declared[name].parse(text.strip(), f"problem {problem.name!r}")
     return params
+
+
+def _once(given: dict[tuple[str, str], str], target: tuple[str, str], name: str, text: str) -> None:
+    """ConfigError if ``target`` was set before; else note its value: a command that runs one
+    setting takes one value of each parameter (only metaopt compare makes a grid of several)."""
+    if target in given:
+        context = click.get_current_context(silent=True)
+        command = f"metaopt {context.info_name}" if context and context.parent else "metaopt run"
+        raise ConfigError(
+            f"--set {name} given twice ({given[target]}, {text}); {command} takes one value "
+            "(a grid over values is metaopt compare's)"
+        )
+    given[target] = text
 
 
 def _target(

@@ -242,17 +242,21 @@ PARAMS = (
         int,
         0,
         "lambda, candidates per generation (0: 4 + floor(3 ln n): 10 for the paper's 10 CPG "
-        "parameters, 12 for nao-walk's steered controller's 15)",
+        "parameters, 12 for nao-walk's steered controller's 15); at most 1,000,000: a "
+        "generation's arrays are this long, and a larger one is a slip that would fill memory",
         low=0,
+        high=1_000_000,
     ),
     Param(
         "sigma0",
         float,
         0.3,
         "initial step size, as a share of each variable's range (0.3 for a start anywhere in "
-        "the box; about a warm start's --start-spread to search near it)",
+        "the box; about a warm start's --start-spread to search near it); at most 1, the "
+        "whole range",
         low=0.0,
         low_open=True,
+        high=1.0,
     ),
     repair_param("how candidates sampled past a bound come back: clip to it or reflect off it"),
     budget_param(),

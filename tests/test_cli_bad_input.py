@@ -396,3 +396,71 @@ def test_the_sweep_tried_many_distinct_inputs():
         pytest.skip("run together with the sweep")
     print(f"\n{len(TRIED)} distinct bad invocations, none with a traceback")
     assert len(TRIED) >= 400
+
+
+def _one_line(result, *needles: str) -> str:
+    """The one 'Error: ...' line of a command refused with exit 2, holding needles."""
+    assert result.exit_code == 2, (result.output, result.exception)
+    lines = result.stderr.strip().splitlines()
+    assert len(lines) == 1 and lines[0].startswith("Error: "), result.stderr
+    for needle in needles:
+        assert needle in lines[0], lines[0]
+    return lines[0]
+
+
+@pytest.mark.parametrize("target", ["nan", "inf", "-inf"])
+def test_compare_refuses_a_target_that_is_no_finite_fitness(workplace, monkeypatch, target):
+    """As metaopt run does: a NaN target counted every run a success, inf too."""
+    monkeypatch.chdir(workplace)
+    before = _snapshot(workplace)
+    result = CliRunner().invoke(main, [*COMPARE_BASE, "--set", "dim=2", f"--target={target}"])
+    _one_line(result, "target must be a finite fitness", target)
+    (workplace / "nan-target.toml").write_text(
+        f'name = "t"\nproblem = "sphere"\nseeds = 1\nbudget = 5\ntarget = {target}\n'
+        '[[optimizers]]\nname = "random"\n'
+    )
+    result = CliRunner().invoke(main, ["compare", "nan-target.toml"])
+    _one_line(result, "nan-target.toml: target must be a finite fitness", target)
+    (workplace / "nan-target.toml").unlink()
+    assert _snapshot(workplace) == before
+
+
+@pytest.mark.parametrize(
+    ("command", "pairs", "needles"),
+    [
+        (RUN_BASE, ["dim=3"], ["--set dim given twice (2, 3)", "metaopt run takes one value"]),
+        (RUN_BASE, ["problem.dim=3"], ["--set problem.dim given twice (2, 3)"]),
+        (RUN_BASE[:-2], ["hms=2", "o.hms=3"], ["--set o.hms given twice (2, 3)"]),
+        (["replay", "1"], ["dim=2", "sphere.dim=3"], ["--set sphere.dim given twice (2, 3)",
+                                                      "metaopt replay takes one value"]),
+    ],
+)  # fmt: skip
+def test_a_setting_given_twice_is_refused_outside_compare(workplace, monkeypatch, command,
+                                                          pairs, needles):  # fmt: skip
+    """run kept the last of two values without a word, while compare makes a grid of them."""
+    monkeypatch.chdir(workplace)
+    before = _snapshot(workplace)
+    args = [*command, *(a for pair in pairs for a in ("--set", pair))]
+    _one_line(CliRunner().invoke(main, args), *needles, "a grid over values is metaopt compare's")
+    assert _snapshot(workplace) == before
+
+
+def test_compare_still_makes_a_grid_of_a_setting_given_twice(tmp_path, monkeypatch):
+    monkeypatch.chdir(tmp_path)
+    args = [*COMPARE_BASE, "--set", "dim=2", "--set", "dim=3", "--format", "csv"]
+    result = CliRunner().invoke(main, args)
+    assert result.exit_code == 0, result.output
+    assert "dim=2" in result.stdout and "dim=3" in result.stdout
+
+
+def test_start_points_far_past_the_budget_are_refused_by_check(workplace, monkeypatch):
+    """--check said every setting accepted, then the run failed with a MemoryError and stayed
+    'running'."""
+    monkeypatch.chdir(workplace)
+    before = _snapshot(workplace)
+    args = ["run", "-o", "cmaes", "-p", "sphere", "--budget", "20", "--set", "dim=2",
+            "--start-from", "1", "--start-points", "100000000000000"]  # fmt: skip
+    for extra in (["--check"], []):
+        _one_line(CliRunner().invoke(main, [*args, *extra]), "100000000000000 start points",
+                  "the 20 candidates the budget evaluates", "at most 20")  # fmt: skip
+    assert _snapshot(workplace) == before

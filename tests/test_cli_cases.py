@@ -165,7 +165,7 @@ def test_a_problem_refusing_its_settings_stops_a_run_before_a_store_exists(tmp_p
 @pytest.mark.parametrize(
     ("args", "needles"),
     [
-        (["-p", "sphere", "--set", "sigma0=-1"], ["'sigma0' = -1.0 is invalid", "(0, inf]"]),
+        (["-p", "sphere", "--set", "sigma0=-1"], ["'sigma0' = -1.0 is invalid", "(0, 1]"]),
         (["-p", "sphere", "--mode", "async"], ["'cmaes' is generational", "--mode sync"]),
         (["-p", "nao-walk", "--set", "worlds=pushes", "--set", "world_cells=nominal,servo x2"],
          ["world_cells: no perturbation 'servo x2'", "accepted: nominal"]),

@@ -149,3 +149,34 @@ def test_a_population_of_one_is_refused_in_one_line(tmp_path):
         "--db", str(tmp_path / "runs.db"), cwd=tmp_path,
     )  # fmt: skip
     one_error_line(done, "population", "at least 2")
+
+
+@pytest.mark.parametrize(
+    ("setting", "needles"),
+    [
+        ("sigma0=inf", ["'sigma0' = inf", "(0, 1]"]),
+        ("sigma0=1e308", ["'sigma0' = 1e+308", "(0, 1]"]),
+        ("sigma0=1.5", ["'sigma0' = 1.5", "(0, 1]"]),
+        ("population=10000000000", ["'population' = 10000000000", "[0, 1e+06]"]),
+    ],
+)
+def test_a_step_past_the_range_or_a_population_past_memory_is_refused_in_one_line(
+    tmp_path, setting, needles
+):
+    """sigma0 is a share of each range (at most 1: inf ended in a LinAlgError and a failed
+    run); a population of 10**10 ended in a MemoryError traceback. Both are refused, nothing
+    stored."""
+    done = metaopt_cli(
+        "run", "-o", "cmaes", "-p", "sphere", "--budget", "60", "--seed", "1", "--set", setting,
+        "--set", "dim=3", "--db", str(tmp_path / "runs.db"), cwd=tmp_path,
+    )  # fmt: skip
+    one_error_line(done, *needles)
+    assert not (tmp_path / "runs.db").exists()
+
+
+def test_a_step_of_the_whole_range_runs(tmp_path):
+    done = metaopt_cli(
+        "run", "-o", "cmaes", "-p", "sphere", "--budget", "30", "--seed", "1", "--set",
+        "sigma0=1", "--set", "dim=3", "--db", str(tmp_path / "runs.db"), cwd=tmp_path,
+    )  # fmt: skip
+    assert done.returncode == 0, done.stderr

@@ -8,6 +8,7 @@ from __future__ import annotations
 import contextlib
 import csv
 import io
+import json
 from pathlib import Path
 
 import numpy as np
@@ -551,3 +552,60 @@ def test_ctrl_c_stops_every_job_and_keeps_what_finished(tmp_path: Path, stop: st
         runs = store.runs()
         assert len(runs) == 2 and {run.status for run in runs} == {"interrupted"}
         assert all(store.evaluation_counts(run.id).stored > 0 for run in runs)
+
+
+def test_brackets_in_names_labels_settings_and_paths_are_shown_as_typed(tmp_path: Path) -> None:
+    """A name, an optimizer label, a setting and a store path in brackets are data, not rich
+    markup: the compare runs and shows them, `runs` lists the experiment, export names its file."""
+    path = tmp_path / "brackets.toml"
+    path.write_text(
+        'name = "a[/b]"\nproblem = "sphere"\nseeds = 1\n[problem_settings]\ndim = [2, 3]\n'
+        '[[optimizers]]\nlabel = "r[/x]"\nname = "random"\nbudget = 5\n'
+    )
+    done = metaopt_cli("compare", "brackets.toml", "--db", "n[x].db", cwd=tmp_path)
+    assert done.returncode == 0, done.stderr
+    assert "experiment 'a[/b]': 2 run(s) ran" in done.stdout and "(in n[x].db)" in done.stdout
+    assert "r[/x] [dim=2] seed 1" in done.stdout  # the progress bar's label
+    assert "experiment a[/b]" in done.stdout and "r[/x]" in done.stdout
+    flags = metaopt_cli("compare", "-o", "random", "-p", "sphere", "--budget", "5", "--seeds",
+                        "1", "--set", "dim=2", "--set", "dim=3", "--name", "flags",
+                        "--db", "n[x].db", cwd=tmp_path)  # fmt: skip
+    assert flags.returncode == 0, flags.stderr
+    assert "random [dim=2] seed 1" in flags.stdout and "random [dim=3] seed 1" in flags.stdout
+    listed = metaopt_cli("runs", "--db", "n[x].db", cwd=tmp_path)
+    assert listed.returncode == 0, listed.stderr
+    assert listed.stdout.count("a[/b]") == 2
+    single = metaopt_cli("run", "-o", "random", "-p", "sphere", "--budget", "5",
+                         "--db", "q[a].db", cwd=tmp_path)  # fmt: skip
+    assert single.returncode == 0, single.stderr
+    assert "(in q[a].db)" in single.stdout
+    wrote = metaopt_cli("export", "1", "--db", "q[a].db", "--output", "x[final].csv", cwd=tmp_path)
+    assert wrote.returncode == 0 and "wrote 5 evaluations to x[final].csv" in wrote.stderr
+
+
+def test_transfer_as_json_is_one_document_and_as_csv_is_refused(tmp_path: Path) -> None:
+    """--transfer --format json: one object holding both tables; --format csv, which would write
+    two tables with different headers, is refused in one line before anything runs."""
+    (tmp_path / "walk.toml").write_text(
+        'name = "walk"\nproblem = "nao-walk"\nseeds = [1]\n'
+        '[problem_settings]\nbackend = "mujoco"\nduration = 3.0\nlock = 1.0\n'
+        '[[optimizers]]\nname = "hs"\nbudget = 8\nparams = { hms = 4 }\n'
+    )
+    refused = metaopt_cli("compare", "walk.toml", "--transfer", "--format", "csv",
+                          "--db", "walk.db", cwd=tmp_path)  # fmt: skip
+    lines = refused.stderr.strip().splitlines()
+    assert refused.returncode == 2 and len(lines) == 1, refused.stderr
+    assert "--format json" in lines[0] and "--transfer-csv" in lines[0]
+    assert refused.stdout == "" and not (tmp_path / "walk.db").exists()
+    done = metaopt_cli("compare", "walk.toml", "--transfer", "--format", "json", "--transfer-csv",
+                       "transfer.csv", "--db", "walk.db", cwd=tmp_path)  # fmt: skip
+    assert done.returncode == 0, done.stderr
+    document = json.loads(done.stdout)
+    assert list(document) == ["comparison", "transfer"]
+    assert [row["optimizer"] for row in document["comparison"]] == ["hs"]
+    assert document["transfer"] and {r["found_on"] for r in document["transfer"]} == {"mujoco"}
+    from_file = _csv_rows((tmp_path / "transfer.csv").read_text())
+    assert [r["replayed_on"] for r in from_file] == [r["replayed_on"] for r in document["transfer"]]
+    plain = metaopt_cli("compare", "walk.toml", "--no-run", "--format", "json", "--db", "walk.db",
+                        cwd=tmp_path)  # fmt: skip
+    assert isinstance(json.loads(plain.stdout), list)  # without --transfer: the table's rows

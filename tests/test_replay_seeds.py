@@ -20,7 +20,7 @@ from metaopt_problems.nao_walk.stored_gaits import (
     load_gait,
     stored_gait_names,
 )
-from tests.conftest import metaopt_cli
+from tests.conftest import metaopt_cli, one_error_line
 
 SHORT = ("--set", "duration=4", "--set", "lock=1")
 
@@ -93,3 +93,34 @@ def test_replay_takes_a_stored_gait_by_name_without_a_store(tmp_path) -> None:
     first, second = stored_gait_names()[:2]  # the refusal lists them sorted
     assert unknown.returncode == 2
     assert f"neither a stored candidate ({first}, {second}" in unknown.stderr
+
+
+def test_replay_refuses_a_setting_that_changes_the_candidates_space(tmp_path) -> None:
+    """`replay --set` that gives the problem other variables (dim=1, dim=3 of a 2-variable
+    sphere) would evaluate the stored vector as a point it is not: refused in one line, for
+    one evaluation and for --seeds; a --set that keeps the space replays."""
+    done = metaopt_cli("run", "-o", "random", "-p", "sphere", "--budget", "3", "--seed", "1",
+                       "--set", "dim=2", cwd=tmp_path)  # fmt: skip
+    assert done.returncode == 0, done.stderr
+    for target, extra in (("1", ()), ("1:1", ()), ("1", ("--seeds", "2"))):
+        for dim, now in (("1", "1 variable (x0)"), ("3", "3 variables (x0, x1, x2)")):
+            refused = metaopt_cli("replay", target, *extra, "--set", f"dim={dim}", cwd=tmp_path)
+            one_error_line(refused, f"--set dim={dim} changes the space to {now}; the "
+                           "candidate has 2 variables (x0, x1)")  # fmt: skip
+    same = metaopt_cli("replay", "1", "--set", "dim=2", cwd=tmp_path)
+    assert same.returncode == 0, same.stderr
+
+
+def test_check_space_refuses_other_variables_or_bounds_and_keeps_the_same() -> None:
+    """Other names or bounds are another space, named in the refusal; the same space passes."""
+    from metaopt import ConfigError
+    from metaopt.assessment.replay import check_space
+    from metaopt.space import Space
+
+    two = Space.from_bounds([-5, -5], [5, 5])
+    check_space({"scale": 1}, two, Space.from_bounds([-5, -5], [5, 5]))
+    with pytest.raises(ConfigError, match=r"changes x1's bounds to \[-5, 10\]; the candidate's "
+                       r"are \[-5, 5\]"):  # fmt: skip
+        check_space({"scale": 2}, two, Space.from_bounds([-5, -5], [5, 10]))
+    with pytest.raises(ConfigError, match=r"changes the variables to \(a, b\)"):
+        check_space({"kind": "b"}, two, Space.from_bounds([-5, -5], [5, 5], ["a", "b"]))

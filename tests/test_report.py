@@ -250,3 +250,10 @@ def test_experiment_report_bad_input_is_one_line(tmp_path, args, message):
     done = metaopt_cli("report", *args, "--db", "e.db", cwd=tmp_path)
     assert done.returncode == 2 and message in done.stderr, done.stderr
     assert "Traceback" not in done.stderr and not (tmp_path / "report-tiny").exists()
+
+
+@pytest.mark.parametrize("maximize", [False, True])
+def test_convergence_of_no_fitness_is_empty_curves(maximize: bool) -> None:
+    curves = convergence(np.array([]), maximize)
+    assert curves.fitness.size == curves.best.size == curves.mean.size == 0
+    assert curves.evaluations.size == 0 and curves.failed == 0 and curves.window == 1

@@ -597,3 +597,37 @@ def test_the_figures_draw_speed_against_the_first_fall_rate_or_refuse_a_table_wi
         ConfigError, match=r"table t-1 has no fall rate \(metrics: speed, \|drift\|\)"
     ):
         figure_metrics(("speed", "|drift|"), "t-1")
+
+
+STEADY = ("steady_walk", "--cells", "nominal", "--seeds", "1", "--set", "duration=7",
+          "--set", "lock=1")  # fmt: skip
+
+
+def test_robustness_refuses_a_backend_setting_an_engine_twice_and_a_changed_space(
+    tmp_path: Path,
+) -> None:
+    """--set backend=X would be overridden by --engines, an engine named twice would count its
+    seeds twice, and a --set that changes the candidate's space would evaluate its vector as
+    another point: each refused in one line, before any work."""
+    with pytest.raises(ConfigError, match="use --engines ode"):
+        check_changes({"backend": "ode"}, STANDARD_TABLE)
+    for args, needles in (
+        (("--engines", "mujoco", "--set", "backend=ode"),
+         ("--set backend=ode: robustness runs every engine in --engines; use --engines ode",)),
+        (("--engines", "ode+ode"), ("--engines names ode twice",)),
+        (("--engines", "ode", "--set", "controller=stride"),
+         ("--set controller=stride changes the space to 14 variables",
+          "the candidate has 15 variables")),
+    ):  # fmt: skip
+        done = metaopt_cli("robustness", *STEADY, *args, "--csv", "out.csv", cwd=tmp_path)
+        one_error_line(done, *needles)
+        assert list(tmp_path.iterdir()) == []
+
+
+def test_robustness_keeps_an_unchanged_space_and_prints_paths_as_written(tmp_path: Path) -> None:
+    """A --set that leaves the space as it was runs; 'wrote PATH' shows '[final]' as given."""
+    done = metaopt_cli("robustness", *STEADY, "--engines", "ode", "--set", "controller=steered",
+                       "--csv", "x[final].csv", cwd=tmp_path)  # fmt: skip
+    assert done.returncode == 0, done.stderr
+    assert "wrote x[final].csv" in done.stdout
+    assert [r["engine"] for r in _rows(tmp_path / "x[final].csv")] == ["ode", "ode"]

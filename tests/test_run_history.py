@@ -118,3 +118,31 @@ def test_the_command_shows_cma_es_step_shrinking_on_the_sphere(tmp_path):
     plain = metaopt_cli("history", "1", "--window", "100", "--format", "csv", cwd=tmp_path,
                         env=env)  # fmt: skip
     assert "spread" not in plain.stdout  # only when asked for
+
+
+def _run_without_evaluations(db) -> int:
+    """A run stopped before its first evaluation (an early Ctrl-C), as the store holds it."""
+    from metaopt.storage.run_store import RunStore
+
+    with RunStore(db) as store:
+        return store.create_run(
+            optimizer="random", optimizer_params={}, problem="sphere",
+            problem_params={"dim": 2}, seed=7, budget=10, sense="minimize",
+            space=[{"name": f"x{i}", "lower": -5, "upper": 5, "description": ""}
+                   for i in range(2)],
+            settings={"mode": "sync"}, versions={"python": "3"},
+        )  # fmt: skip
+
+
+def test_history_and_report_of_a_run_without_evaluations_refuse_in_one_line(tmp_path):
+    """`history` (every format) and `report` of a run with no evaluation yet: one 'Error:'
+    line, exit 2, no traceback and no figure folder; its empty history has no window."""
+    run_id = _run_without_evaluations(tmp_path / "metaopt.db")
+    expected = [f"Error: run {run_id} has no evaluations yet; nothing to show"]
+    for command in (["history", str(run_id)], ["history", str(run_id), "--format", "json"],
+                    ["report", str(run_id)], ["report", str(run_id), str(run_id)]):  # fmt: skip
+        done = metaopt_cli(*command, cwd=tmp_path)
+        assert done.returncode == 2, (command, done.stderr)
+        assert done.stderr.strip().splitlines() == expected, command
+    assert not list(tmp_path.glob("report-*"))
+    assert run_history([], 10, maximize=False).windows == ()

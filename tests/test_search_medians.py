@@ -15,7 +15,7 @@ import pytest
 from metaopt.assessment.candidates import Candidate
 from metaopt.assessment.robustness import CellResult, PerturbationTable, whole_table, write_csv
 from metaopt_problems.nao_walk.robustness import STANDARD_TABLE
-from tests.conftest import metaopt_cli
+from tests.conftest import metaopt_cli, one_error_line
 
 TABLE = PerturbationTable("t-1", (), ("speed", "|drift|", "fell", "flight"))
 GOALS = ("--goal", "speed>=0.44", "--goal", "fell<=0.05", "--goal", "|drift|<=0.3")
@@ -276,3 +276,27 @@ def test_a_figure_of_a_table_without_a_fall_rate_is_refused_before_any_file(
     assert "Traceback" not in done.stderr and "has no fall rate" in done.stderr
     assert len(done.stderr.strip().splitlines()) == 1
     assert not (tmp_path / "out.csv").exists() and not (tmp_path / "f.png").exists()
+
+
+def test_a_table_given_twice_is_refused_not_counted_as_two_searches(tmp_path: Path) -> None:
+    """The same file twice would pass for two independent searches ("sd over 2"): refused in
+    one line by robustness-summary (CSV and --against) and robustness-rank, however written."""
+    for name in ("s1.csv", "s2.csv"):
+        _search(tmp_path / name, "run 1", {"mujoco": [0.5, 0.6]})
+    for args, needle in (
+        (("robustness-summary", "s1.csv", "./s1.csv"), "s1.csv is given twice"),
+        (("robustness-summary", "s1.csv", "s2.csv", "--against", "s2.csv", "--against",
+          "s2.csv"), "--against s2.csv is given twice"),
+        (("robustness-rank", "s1.csv", "s1.csv", "--goal", "speed>=0.4"),
+         "s1.csv is given twice"),
+    ):  # fmt: skip
+        one_error_line(metaopt_cli(*args, cwd=tmp_path), needle)
+
+
+def test_robustness_summary_names_a_written_path_with_brackets_as_it_is(tmp_path: Path) -> None:
+    """'wrote PATH' prints the path as written, not as rich markup ('[final]' kept)."""
+    _search(tmp_path / "s1.csv", "run 1", {"mujoco": [0.5, 0.6]})
+    done = metaopt_cli("robustness-summary", "s1.csv", "--csv", "m[final].csv", cwd=tmp_path)
+    assert done.returncode == 0, done.stderr
+    assert "wrote m[final].csv" in done.stdout
+    assert (tmp_path / "m[final].csv").exists()

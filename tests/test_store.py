@@ -8,6 +8,7 @@ import pytest
 from metaopt import ConfigError, StoreError
 from metaopt.cli.common import check_store_path
 from metaopt.storage import run_store as store_module
+from metaopt.storage.experiment_store import ExperimentStore
 from metaopt.storage.run_store import FLUSH_INTERVAL, EvaluationCounts, RunStore
 
 
@@ -289,3 +290,19 @@ def test_the_flusher_outlives_a_locked_store_and_stores_everything_after(tmp_pat
         store.read("SELECT 1")
     holder.rollback()
     holder.close()
+
+
+def test_a_member_run_and_its_membership_are_stored_together_or_not_at_all(tmp_path):
+    """An experiment's run joins its cell in the transaction that creates it: when recording
+    the membership fails (here its table is gone), the run is not left behind either."""
+    db = tmp_path / "e.db"
+    with ExperimentStore(db) as store:
+        with store.joining("study", "cell", 1):
+            _new_run(store)
+        assert store.member("study", "cell", 1) is not None
+        with sqlite3.connect(db) as other:
+            other.execute("DROP TABLE experiment_runs")
+        other.close()
+        with store.joining("study", "cell", 2), pytest.raises(sqlite3.OperationalError):
+            _new_run(store)
+        assert [row[0] for row in store.read("SELECT id FROM runs")] == [1]

@@ -15,7 +15,7 @@ from metaopt.cli.report import write_replay_video
 from metaopt.errors import ConfigError
 from metaopt.physics import PhysicsSettings
 from metaopt.plugins import registry
-from metaopt.reporting.video import VIDEO_FPS, film_candidate
+from metaopt.reporting.video import VIDEO_FPS, Mp4Writer, film_candidate
 from metaopt.running import RunSpec, run
 from metaopt.storage.run_store import RunStore
 from metaopt_problems.nao_walk.robot import nao
@@ -122,3 +122,36 @@ def test_a_problem_without_video_says_so_in_one_line(tmp_path):
     with pytest.raises(ConfigError, match=r"^problem 'sphere': cannot show a video$"):
         film_candidate(source, plugins, {}, tmp_path / "walk.mp4")
     assert not (tmp_path / "walk.mp4").exists()
+
+
+def _frame(size: tuple[int, int], shade: int) -> np.ndarray:
+    width, height = size
+    return np.full((height, width, 3), shade, dtype=np.uint8)
+
+
+@pytest.mark.parametrize("stop", [ValueError, KeyboardInterrupt])
+def test_a_video_that_fails_midway_leaves_no_file_and_the_earlier_one_as_it_was(tmp_path, stop):
+    """The real encoder takes a few frames, then a wrong-sized one (ValueError) or Ctrl-C:
+    neither a half-written MP4 nor its temporary file is left, and a file at the path before
+    is untouched; a video that ends well replaces it whole."""
+    size = (32, 24)
+    path = tmp_path / "walk.mp4"
+    for before in (None, b"an earlier good video"):
+        if before is not None:
+            path.write_bytes(before)
+        with pytest.raises(stop), Mp4Writer(path, size, VIDEO_FPS) as writer:
+            for shade in range(5):
+                writer(_frame(size, 40 * shade))
+            if stop is KeyboardInterrupt:
+                raise KeyboardInterrupt
+            writer(_frame((16, 16), 0))
+        assert writer.frames == 5
+        assert [p.name for p in tmp_path.iterdir()] == ([] if before is None else ["walk.mp4"])
+        assert before is None or path.read_bytes() == before
+    with Mp4Writer(path, size, VIDEO_FPS) as writer:
+        for shade in range(5):
+            writer(_frame(size, 40 * shade))
+    assert [p.name for p in tmp_path.iterdir()] == ["walk.mp4"]
+    reader = imageio_ffmpeg.read_frames(str(path))
+    meta = next(reader)
+    assert tuple(meta["size"]) == size and sum(1 for _ in reader) == 5

@@ -282,3 +282,13 @@ def test_run_start_from_one_candidate_of_a_run(tmp_path) -> None:
     missing = metaopt_cli("run", "-o", "hs", "-p", "sphere", "--budget", "30",
                           "--start-from", "1:999", "--db", db, cwd=tmp_path)  # fmt: skip
     assert missing.returncode == 2 and "run 1 has no candidate 999" in missing.stderr
+
+
+def test_start_points_far_past_the_budget_are_refused_and_a_stored_population_is_not() -> None:
+    """A slip of 10**14 start points is refused before anything runs; a run stored with its
+    optimizer's initial population past its budget (random's batch of 100, budget 30) still
+    passes, so that it resumes."""
+    with pytest.raises(ConfigError, match=r"more than the 10 candidates .* at most 10$"):
+        RunSettings(start=[[0.0]], start_points=10**14, resample=2).check(20)
+    RunSettings(start=[[0.0]], start_points=100).check(30)
+    RunSettings(start=[[0.0]], start_points=20).check(20)

@@ -7,9 +7,12 @@ import os
 from pathlib import Path
 
 import pytest
+from click.testing import CliRunner
 from matplotlib.figure import Figure
 
 from metaopt.assessment.robustness import write_rows
+from metaopt.cli import main
+from metaopt.errors import ConfigError
 from metaopt.reporting.plots import save_figure
 from metaopt.storage.whole_file import written_whole
 
@@ -59,3 +62,49 @@ def test_csv_rows_and_figures_are_written_through_it(tmp_path: Path):
         save_figure(broken, tmp_path / "figure.png")
     assert path.read_bytes() == png
     assert sorted(p.name for p in tmp_path.iterdir()) == ["figure.png", "rows.csv"]
+
+
+def test_a_symlink_is_written_through_to_its_target(tmp_path: Path):
+    """The link stays a link and its target gets the content (a rename would replace the link
+    with a file and leave the target as it was)."""
+    real = tmp_path / "real.csv"
+    real.write_text("old\n")
+    link = tmp_path / "link.csv"
+    link.symlink_to("real.csv")
+    with written_whole(link) as handle:
+        handle.write("new\n")
+    assert link.is_symlink() and os.readlink(link) == "real.csv"
+    assert real.read_text() == "new\n"
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["link.csv", "real.csv"]
+
+
+def test_a_fifo_is_refused_and_left_a_fifo(tmp_path: Path):
+    fifo = tmp_path / "pipe.csv"
+    os.mkfifo(fifo)
+    with pytest.raises(ConfigError, match="not a regular file"), written_whole(fifo) as handle:
+        handle.write("a\n")
+    assert fifo.is_fifo()
+    assert [p.name for p in tmp_path.iterdir()] == ["pipe.csv"]
+
+
+def test_export_writes_through_a_symlink_and_refuses_a_fifo_in_one_line(tmp_path: Path):
+    store = str(tmp_path / "runs.db")
+    runner = CliRunner()
+    done = runner.invoke(
+        main, ["run", "-o", "random", "-p", "sphere", "--budget", "5", "--set", "dim=2",
+               "--seed", "1", "--db", store],
+    )  # fmt: skip
+    assert done.exit_code == 0, done.output
+    real, link, fifo = tmp_path / "real.csv", tmp_path / "link.csv", tmp_path / "pipe.csv"
+    real.write_text("old\n")
+    link.symlink_to(real)
+    done = runner.invoke(main, ["export", "1", "--output", str(link), "--db", store])
+    assert done.exit_code == 0, done.output
+    assert link.is_symlink() and real.read_text().startswith("index,candidate")
+    os.mkfifo(fifo)
+    done = runner.invoke(main, ["export", "1", "--output", str(fifo), "--db", store])
+    assert done.exit_code == 2, done.output
+    lines = done.stderr.strip().splitlines()
+    assert len(lines) == 1 and lines[0].startswith("Error: "), done.stderr
+    assert "pipe.csv is not a regular file" in lines[0]
+    assert fifo.is_fifo()

@@ -52,8 +52,9 @@
 # Stage 1
 #   STAGE1_ENGINE=E (mujoco), e.g. mujoco+ode (scored by the worse engine).
 #   STAGE1_OPTIMIZER=NAME (hs), STAGE1_BATCH=B (2; 0: the optimizer's own, e.g. a generation).
-#   STAGE1_SET="NAME=VALUE ..." adds nao-walk settings to every stage-1 run (a later --set of a
-#     name wins), e.g. worlds=standard (each evaluation in one cell of the table).
+#   STAGE1_SET="NAME=VALUE ..." adds nao-walk settings to every stage-1 run (replacing the
+#     script's value of a name it gives), e.g. worlds=standard (each evaluation in one cell of
+#     the table).
 #   STAGE1_TIME=SECONDS (pool) gives all stage-1 runs together at most that long, each an even
 #     share of what is left (metaopt run --max-time): a slow day cuts stage 1's evaluations,
 #     not stage 1b's time.
@@ -217,25 +218,34 @@ elif [ -n "${TRIAL_TIME:-}" ]; then
     exit 2
 fi
 least_retry=60  # seconds: FLAT_BEST starts a pipeline again only with this much time to give it
-walk=(--set controller=steered)
 standard_walk=(--set duration=15)  # the later stages' episode, whatever stage 1 or 1b walked
-# Every stage-1 and stage-1b run's settings but its seed, start, time and store, the knobs' --set
-# after the script's (a later --set of a name wins); both are checked before stage 1 starts
-# (metaopt run --check), so that a bad value is refused in one line and costs no search time.
-stage1_run=(-o "$stage1_optimizer" -p nao-walk --budget 1000 --workers 2 --batch "$stage1_batch"
-    "${walk[@]}" --set backend="$stage1_engine" --set flight_penalty=20)
-for pair in ${STAGE1_SET:-}; do stage1_run+=(--set "$pair"); done
+with_settings() {  # appends to the array named $1 the script's settings (the rest, NAME=VALUE)
+    # that the knob's list $2 does not name, then the knob's own: metaopt run takes each name
+    # once, and a knob's value replaces the script's
+    local -n into=$1
+    local given=" $2 " pair
+    shift 2
+    for pair in "$@"; do
+        case $given in *" ${pair%%=*}="*) ;; *) into+=(--set "$pair") ;; esac
+    done
+    for pair in $given; do into+=(--set "$pair"); done
+}
+# Every stage-1 and stage-1b run's settings but its seed, start, time and store; both are
+# checked before stage 1 starts (metaopt run --check), so that a bad value is refused in one
+# line and costs no search time.
+stage1_run=(-o "$stage1_optimizer" -p nao-walk --budget 1000 --workers 2 --batch "$stage1_batch")
+with_settings stage1_run "${STAGE1_SET:-}" controller=steered backend="$stage1_engine" \
+    flight_penalty=20
 stage1b_run=(-o "$stage1b_optimizer" -p nao-walk --budget "$stage1b_budget" --workers 2
-    --batch "$stage1b_batch" "${walk[@]}" --set flight_penalty=50
-    --set backend=mujoco+pybullet+ode --set engine_score=mean --set engine_cap=6 --set noise=0.1
-    --set fitness=progress)
+    --batch "$stage1b_batch")
 if [ -n "${STAGE1B_SCREEN:-}" ]; then stage1b_run+=(--screen); fi
 if [ -n "${STAGE1B_RESAMPLE:-}" ]; then
     stage1b_run+=(--resample "$STAGE1B_RESAMPLE" --common-seeds "${STAGE1B_COMMON:-run}")
 elif [ -n "${STAGE1B_COMMON:-}" ]; then
     stage1b_run+=(--common-seeds "$STAGE1B_COMMON")
 fi
-for pair in ${STAGE1B_SET:-}; do stage1b_run+=(--set "$pair"); done
+with_settings stage1b_run "${STAGE1B_SET:-}" controller=steered flight_penalty=50 \
+    backend=mujoco+pybullet+ode engine_score=mean engine_cap=6 noise=0.1 fitness=progress
 if [ -n "${STAGE1B_CELLS:-}" ]; then stage1b_run+=(--set "world_cells=$STAGE1B_CELLS"); fi
 if [ -n "${STAGE1B_DURATIONS:-}" ]; then
     stage1b_run+=(--set "cell_durations=$STAGE1B_DURATIONS")

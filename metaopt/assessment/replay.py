@@ -5,6 +5,7 @@ gait)."""
 
 from __future__ import annotations
 
+from collections.abc import Mapping
 from dataclasses import dataclass
 from typing import Any
 
@@ -26,6 +27,7 @@ from metaopt.plugins import Registry
 from metaopt.problem import ProblemInfo
 from metaopt.resampling import aggregate_samples
 from metaopt.seeding import EvaluationSeeds
+from metaopt.space import Space
 from metaopt.storage.run_store import CandidateRecord, RunRecord, RunStore
 
 
@@ -43,6 +45,9 @@ class ReplaySource:
     aggregate: str = "mean"
     fitness: float | None = None
     metrics: dict[str, float] | None = None
+    #: the space the candidate was found in (a run's, as stored); None: its problem's, built
+    #: with problem_params
+    space: Space | None = None
 
     @property
     def seed(self) -> int:
@@ -88,6 +93,7 @@ def run_source(store: RunStore, target: int | str) -> ReplaySource:
             f"the seeds of its best, candidate {best.number})",
             run.problem, run.problem_params, recommended_point(run),
             [(e.index, e.seed) for e in best.samples], best.aggregate,
+            space=Space.from_json(run.space),
         )  # fmt: skip
     run, best = stored_candidate(store, target)
     return ReplaySource(
@@ -99,6 +105,7 @@ def run_source(store: RunStore, target: int | str) -> ReplaySource:
         best.aggregate,
         best.fitness,
         best.metrics,
+        Space.from_json(run.space),
     )
 
 
@@ -122,7 +129,7 @@ def replay_params(
     run: RunRecord | ReplaySource, plugins: Registry, overrides: dict[str, Any]
 ) -> tuple[ProblemInfo, dict[str, Any]]:
     """A run's (or a replay source's) problem and its stored parameters with ``overrides``
-    applied and checked."""
+    applied and checked (ConfigError where they change the candidate's space: check_space)."""
     info = plugins.problem(run.problem)
     declared = {p.name for p in info.params}
     for name in overrides:
@@ -131,7 +138,56 @@ def replay_params(
                 f"problem {run.problem!r} has no parameter {name!r}; "
                 f"accepted: {', '.join(sorted(declared)) or 'none'}"
             )
-    return info, resolve(info.params, {**run.problem_params, **overrides}, info.name)
+    params = resolve(info.params, {**run.problem_params, **overrides}, info.name)
+    if overrides:  # the candidate's space, unless changed: a vector means nothing in another
+        stored = run.space if isinstance(run, ReplaySource) else Space.from_json(run.space)
+        if stored is None:
+            stored = space_of(info, resolve(info.params, run.problem_params, info.name))
+        check_space(overrides, stored, space_of(info, params))
+    return info, params
+
+
+def space_of(info: ProblemInfo, params: Mapping[str, Any]) -> Space:
+    """The search space of ``info``'s problem built with ``params`` (cheap: a problem builds
+    its engines on first use), closed again."""
+    problem = info.factory(**params)
+    try:
+        return problem.space
+    finally:
+        problem.close()
+
+
+def check_space(changes: Mapping[str, Any], candidate: Space, changed: Space) -> None:
+    """ConfigError where parameter ``changes`` turn the ``candidate``'s space into another
+    (other variables or bounds): its vector would be evaluated as a point it is not."""
+    given = " ".join(f"--set {name}={value}" for name, value in changes.items())
+    keep = "accepted: changes that keep the candidate's variables and their bounds"
+    if changed.dim != candidate.dim:
+        raise ConfigError(
+            f"{given} changes the space to {_variables(changed)}; the candidate has "
+            f"{_variables(candidate)}; {keep}"
+        )
+    if changed.names != candidate.names:
+        raise ConfigError(
+            f"{given} changes the variables to ({_names(changed)}); the candidate's are "
+            f"({_names(candidate)}); {keep}"
+        )
+    for new, old in zip(changed.variables, candidate.variables, strict=True):
+        if (new.lower, new.upper) != (old.lower, old.upper):
+            raise ConfigError(
+                f"{given} changes {new.name}'s bounds to [{new.lower:g}, {new.upper:g}]; the "
+                f"candidate's are [{old.lower:g}, {old.upper:g}]; {keep}"
+            )
+
+
+def _variables(space: Space) -> str:
+    """'2 variables (x0, x1)', '1 variable (x0)'."""
+    return f"{space.dim} variable{'s' if space.dim != 1 else ''} ({_names(space)})"
+
+
+def _names(space: Space) -> str:
+    """A space's variable names, the first four then '...' where there are more."""
+    return ", ".join(space.names[:4]) + (", ..." if space.dim > 4 else "")
 
 
 def replay_candidate(source: ReplaySource, plugins: Registry, overrides: dict[str, Any]) -> Replay:

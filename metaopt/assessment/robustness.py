@@ -23,6 +23,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from metaopt.assessment.candidates import Candidate
+from metaopt.assessment.replay import check_space, space_of
 from metaopt.errors import ConfigError
 from metaopt.executors.base import EvaluationTask, Executor, Outcome, release_problems
 from metaopt.params import resolve
@@ -152,6 +153,11 @@ def tasks(
             params = resolve(info.params, given, f"{info.name} ({cell.name} on {engine})")
             problem = info.factory(**params)  # a problem refusing its parameters says so now
             try:
+                if problem.space.dim != len(candidate.x):
+                    raise ConfigError(
+                        f"{candidate.label}: {cell.name} on {engine} has a space of "
+                        f"{problem.space.dim} variables; the candidate has {len(candidate.x)}"
+                    )
                 reason = cell.inert(problem) if cell.inert is not None else None
             finally:
                 problem.close()
@@ -445,7 +451,13 @@ def figure_metrics(metrics: Sequence[str], version: str) -> tuple[str, str]:
 
 def check_changes(changes: Mapping[str, Any], table: PerturbationTable) -> None:
     """ConfigError where a change to the candidates' parameters names one the table sets in
-    every cell: it would change nothing, so asking for it is a mistake."""
+    every cell (it would change nothing) or the engine (--engines chooses those)."""
+    if "backend" in changes:  # engine_param's: every cell runs on each of --engines
+        value = changes["backend"]
+        raise ConfigError(
+            f"--set backend={value}: robustness runs every engine in --engines; use --engines "
+            f"{value}"
+        )
     fixed = [name for name in changes if name in table.common]
     if fixed:
         name = fixed[0]
@@ -454,6 +466,22 @@ def check_changes(changes: Mapping[str, Any], table: PerturbationTable) -> None:
             f"{table.common[name]!r} in every cell, so the change would do nothing; accepted: "
             f"the candidate's other parameters (the table sets {', '.join(table.common)})"
         )
+
+
+def check_space_kept(
+    candidates: Sequence[Candidate], changes: Mapping[str, Any], info: ProblemInfo
+) -> None:
+    """ConfigError where ``changes`` to the candidates' parameters change a candidate's space
+    (replay.check_space): its vector would be evaluated as a point it is not."""
+    if not changes:
+        return
+    seen: set[str] = set()
+    for candidate in candidates:
+        key = repr(sorted(candidate.params.items()))
+        if key not in seen:  # one build per distinct parameters (a run's --top K share them)
+            seen.add(key)
+            changed = resolve(info.params, {**candidate.params, **changes}, info.name)
+            check_space(changes, space_of(info, candidate.params), space_of(info, changed))
 
 
 def select_cells(table: PerturbationTable, names: Sequence[str] | None) -> PerturbationTable:

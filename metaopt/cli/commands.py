@@ -38,6 +38,7 @@ from metaopt.cli.robustness import (
 from metaopt.errors import MetaoptError, SettingWarning
 from metaopt.plugins import registry
 from metaopt.reporting import display
+from metaopt.reporting.convergence import require_evaluations
 from metaopt.reporting.history import run_history
 from metaopt.reporting.recent import DEFAULT_WINDOW, recent_figures
 from metaopt.resampling import AGGREGATES
@@ -141,7 +142,7 @@ def list_plugins(name: str | None) -> None:
         console.print("[dim]metaopt list NAME shows one in full with every parameter.[/]")
         return
     kind, info = plugins.any_kind(name)  # raises with close matches of every kind
-    console.print(f"[bold cyan]{info.name}[/] ({kind}): {info.summary}")
+    console.print(f"[bold cyan]{escape(info.name)}[/] ({kind}): {escape(info.summary)}")
     if kind not in ("optimizer", "problem"):
         if getattr(info, "unavailable", None):
             console.print(f"unavailable: {info.unavailable}", markup=False)
@@ -401,7 +402,8 @@ def _with_progress(label: str, db_path: str, start) -> RunResult:
     except RunInterrupted as stop:
         errors.print(
             f"Interrupted: run {stop.run_id} stopped with {stop.stored} evaluations stored in "
-            f"{db_path}. Resume with: metaopt resume {stop.run_id} --db {db_path}"
+            f"{db_path}. Resume with: metaopt resume {stop.run_id} --db {db_path}",
+            markup=False,  # a path is no rich markup
         )
         sys.exit(130)
 
@@ -497,10 +499,12 @@ def history_command(
     run_id: str, window: int, metrics: tuple[str, ...], spread: bool, fmt: str, db_path: str
 ) -> None:
     """Show a run's course, window by window: median fitness and quartiles, the best so far,
-    and metrics' medians or shares; whether a noisy search still climbed when it stopped."""
+    and metrics' medians or shares; whether a noisy search still climbed when it stopped.
+    A run without evaluations is refused in one line: it has no window to show."""
     require_store(db_path)
     with RunStore(db_path) as store:
         record = store.run(run_id)
+        require_evaluations(store, record)
         maximize = record.sense == "maximize"
         space = Space.from_json(record.space) if spread else None
         history = run_history(
@@ -527,7 +531,7 @@ def export_command(run_id: str, fmt: str, output: Path | None, db_path: str) -> 
         else:
             with written_whole(output) as handle:
                 count = export_run(store, run_id, fmt, handle)
-            errors.print(f"wrote {count} evaluations to {output}")
+            errors.print(f"wrote {count} evaluations to {output}", markup=False)
 
 
 @main.command("replay")
@@ -562,13 +566,13 @@ def replay_command(
             over_seeds = replay_seeds(source, plugins, overrides, seeds, seed, pool)
         console.print(display.replay_seeds_table(over_seeds))
         if all(o.fitness is None for o in over_seeds.outcomes):
-            errors.print(f"Every replay failed: {over_seeds.outcomes[0].error}")
+            errors.print(f"Every replay failed: {over_seeds.outcomes[0].error}", markup=False)
             sys.exit(1)
     else:
         result = replay_candidate(source, plugins, overrides)
         console.print(display.replay_table(result))
         if result.replayed.fitness is None:
-            errors.print(f"The replay failed: {result.replayed.error}")
+            errors.print(f"The replay failed: {result.replayed.error}", markup=False)
             sys.exit(1)
     if video is not None:
         write_replay_video(source, overrides, video)

@@ -81,7 +81,10 @@ MAX_SEEDS = 10_000
 )
 @click.option("--name", default=None, help="Flags form: the experiment's name in the store.")
 @click.option(
-    "--transfer", is_flag=True, help="Also replay each run's best on the other physics engines."
+    "--transfer",
+    is_flag=True,
+    help="Also replay each run's best on the other physics engines: a second table (with "
+    "--format json both in one object; not with --format csv: use --csv and --transfer-csv).",
 )
 @output_file_option("--csv", "csv_path", "Write the comparison table as CSV.")
 @output_file_option(
@@ -94,7 +97,9 @@ MAX_SEEDS = 10_000
     default="table",
     show_default=True,
     help="table for reading; markdown to paste into a document; csv or json (every field, "
-    "full precision) for programs.",
+    'full precision) for programs. With --transfer, json is one object {"comparison": [...], '
+    '"transfer": [...]}; csv, one table per document, is refused: use --csv FILE and '
+    "--transfer-csv FILE.",
 )
 @click.option(
     "--jobs",
@@ -162,6 +167,11 @@ def compare(
     experiment = restrict(_experiment(experiment_file, flags, plugins), only, plugins)
     if transfer_csv_path is not None and not transfer:
         raise ConfigError("--transfer-csv writes the transfer table: add --transfer")
+    if transfer and fmt == "csv":
+        raise ConfigError(
+            "--format csv writes one table and --transfer adds a second: use --format json (one "
+            "object with both), or --csv FILE --transfer-csv FILE for the two tables as CSV"
+        )
     shown = console if fmt == "table" else errors  # stdout stays pure CSV, JSON or markdown
     if no_run:
         require_store(db_path)
@@ -188,13 +198,15 @@ def compare(
             )
             errors.print(
                 f"Interrupted: {where} in {db_path}. Run the same `metaopt compare` again to go "
-                "on from there."
+                "on from there.",
+                markup=False,  # a path is no rich markup
             )
             sys.exit(130)
         counts = Counter(d.action for d in done)
         shown.print(
             f"experiment {experiment.name!r}: {counts['ran']} run(s) ran, {counts['resumed']} "
-            f"resumed, {counts['skipped']} already finished (in {db_path})"
+            f"resumed, {counts['skipped']} already finished (in {db_path})",
+            markup=False,  # a name or path in brackets is no rich markup
         )
         _show_stored(experiment, store, plugins, csv_path, fmt, at, transfer, transfer_csv_path)
 
@@ -220,11 +232,23 @@ def _show_stored(
     transfer: bool,
     transfer_csv_path: Path | None,
 ) -> None:
-    """The comparison table (and the transfer table) of what the store holds."""
-    _show(compare_cells(experiment, store, plugins, at), csv_path, fmt)
-    if transfer:
-        transfers = replay_on_other_engines(experiment, store, plugins)
-        _show(transfer_table(experiment, transfers, plugins), transfer_csv_path, fmt)
+    """The comparison table (and the transfer table) of what the store holds; as JSON with
+    --transfer, one object {"comparison": [...], "transfer": [...]} (one document on stdout)."""
+    comparison = compare_cells(experiment, store, plugins, at)
+    if not transfer:
+        _show(comparison, csv_path, fmt)
+        return
+    transfers = transfer_table(
+        experiment, replay_on_other_engines(experiment, store, plugins), plugins
+    )
+    if fmt == "json":
+        records = {"comparison": comparison.to_records(), "transfer": transfers.to_records()}
+        dump_json(records, sys.stdout)
+        _write_csv(comparison, csv_path)
+        _write_csv(transfers, transfer_csv_path)
+        return
+    _show(comparison, csv_path, fmt)
+    _show(transfers, transfer_csv_path, fmt)
 
 
 def _experiment(path: str | None, flags: dict, plugins: Registry) -> Experiment:
@@ -259,7 +283,12 @@ def _show(table: ResultTable, csv_path: Path | None, fmt: str) -> None:
         table.write_csv(sys.stdout)
     else:
         dump_json(table.to_records(), sys.stdout)
+    _write_csv(table, csv_path)
+
+
+def _write_csv(table: ResultTable, csv_path: Path | None) -> None:
+    """The table as CSV into csv_path (written whole), if given, with a line saying so."""
     if csv_path is not None:
         with written_whole(csv_path) as handle:
             table.write_csv(handle)
-        errors.print(f"wrote {len(table.rows)} rows to {csv_path}")
+        errors.print(f"wrote {len(table.rows)} rows to {csv_path}", markup=False)

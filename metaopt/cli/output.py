@@ -41,6 +41,11 @@ def check_output_file(path: str, option: str, suffix: str | None = None) -> Path
     if not folder.is_dir():
         raise ConfigError(f"{option} {path}: folder {folder} does not exist; create it first")
     _check_writable(folder, option, path)
+    if target.exists() and not target.is_file():  # written whole, it would be replaced
+        raise ConfigError(
+            f"{option} {path} is not a regular file (a FIFO, device or socket); give a regular "
+            "file's path, a new one, or a symlink to a regular file"
+        )
     if target.exists() and not os.access(target, os.W_OK):
         raise ConfigError(f"{option} {path}: no permission to write that file")
     return target

@@ -5,10 +5,13 @@ metaopt.assessment.robustness)."""
 from __future__ import annotations
 
 import warnings
+from collections.abc import Callable, Hashable, Sequence
 from dataclasses import replace
 from pathlib import Path
+from typing import Any
 
 import click
+from rich.markup import escape
 
 from metaopt.assessment import goal_ranking, robustness, search_medians
 from metaopt.assessment.candidates import Candidate, find_candidates
@@ -122,8 +125,10 @@ def robustness_command(
         raise ConfigError(f"problem {info.name!r} has no perturbation table")
     changes = parse_problem_settings(settings, info)
     robustness.check_changes(changes, info.perturbations)
+    robustness.check_space_kept(candidates, changes, info)
     candidates = [replace(c, params={**c.params, **changes}) for c in candidates]
     names = engine_names(engines) if engines is not None else tuple(plugins.physics_backends)
+    _once_each(names, lambda name: f"--engines names {name} twice; name each engine once")
     for name in names:
         plugins.physics_backend(name)  # ConfigError listing the installed ones
     table = robustness.select_cells(
@@ -153,7 +158,7 @@ def robustness_command(
     evaluations = sum(len(plan.tasks) for plan in plans)
     inert = (f", {evaluations} evaluations (left out: {inert_pairs} x a cell on an engine it "
              "changes nothing on)") if inert_pairs else ""  # fmt: skip
-    console.print(f"perturbation table {table.version}: {len(table.cells)} cells x "
+    console.print(f"perturbation table {escape(table.version)}: {len(table.cells)} cells x "
                   f"{len(names)} engines x {seeds} seeds{several}{inert}")  # fmt: skip
     with build_executor(executor, workers, scheduler) as pool:
         results = robustness.evaluate(plans, pool)
@@ -182,17 +187,17 @@ def robustness_command(
             csv_path, table,
             [(r.candidate, [*r.results, *r.totals]) for r in ranked],
         )  # fmt: skip
-        console.print(f"wrote {csv_path}")
+        console.print(f"wrote {escape(str(csv_path))}")
     if ranking_path is not None:
         robustness.write_ranking(ranking_path, ranked)
-        console.print(f"wrote {ranking_path}")
+        console.print(f"wrote {escape(str(ranking_path))}")
     if drawn_metrics is not None:
         from metaopt.reporting.plots import save_figure
 
         save_figure(
             robustness.figure(best.candidate, table, best.results, *drawn_metrics), figure_path
         )
-        console.print(f"wrote {figure_path}")
+        console.print(f"wrote {escape(str(figure_path))}")
 
 
 def _candidates(
@@ -208,6 +213,26 @@ def _candidates(
                 f"{info.name!r}: rank candidates of one problem"
             )
     return [c for candidates, _ in found for c in candidates], info
+
+
+def _once_each(items: Sequence[Hashable], refusal: Callable[[Any], str]) -> None:
+    """ConfigError with ``refusal(item)`` for the first item given twice (a file by where it
+    resolves to): counted twice, it would pass for two independent samples."""
+    seen: set[Hashable] = set()
+    for item in items:
+        key = item.resolve() if isinstance(item, Path) else item
+        if key in seen:
+            raise ConfigError(refusal(item))
+        seen.add(key)
+
+
+#: what a refusal of a file given twice accepts
+_EACH_ONCE = "each table counts once, so give each file once"
+
+
+def _given_twice(path: Path) -> str:
+    """The refusal of a robustness table given twice."""
+    return f"{path} is given twice; {_EACH_ONCE}"
 
 
 def _maximizes(info: ProblemInfo, candidate: Candidate) -> bool:
@@ -292,6 +317,8 @@ def robustness_summary_command(
     per engine and their median and standard deviation over the searches, against the
     goals. A search is one chaotic trajectory: a design is judged by medians over its seeds,
     and two designs run on the same seeds by their paired differences (--against)."""
+    _once_each(csv_paths, _given_twice)
+    _once_each(against_paths, lambda path: f"--against {path} is given twice; {_EACH_ONCE}")
     tables = [search_medians.read_table(path) for path in csv_paths]
     baselines = [search_medians.read_table(path) for path in against_paths]
     compared, goals = _alike_with_goals([*tables, *baselines], goal_texts)
@@ -307,12 +334,12 @@ def robustness_summary_command(
         console.print(display.paired_differences_table(paired, tables[0].metrics))
     if csv_path is not None:
         search_medians.write_medians(csv_path, tables, summary, paired)
-        console.print(f"wrote {csv_path}")
+        console.print(f"wrote {escape(str(csv_path))}")
     if drawn is not None:
         from metaopt.reporting.plots import save_figure
 
         save_figure(drawn, figure_path)
-        console.print(f"wrote {figure_path}")
+        console.print(f"wrote {escape(str(figure_path))}")
 
 
 @click.command("robustness-rank")
@@ -340,10 +367,11 @@ def robustness_rank_command(
     against other goals, from the files alone: by their smallest margin to a goal on any
     engine, as robustness --goal ranks, without evaluating anything. Equal margins keep the
     files' order."""
+    _once_each(csv_paths, _given_twice)
     tables = [table for path in csv_paths for table in search_medians.read_tables(path)]
     tables, goals = _alike_with_goals(tables, goal_texts)
     ranked = goal_ranking.rank_by_goals(tables, goals)
     console.print(display.goal_ranking_table(ranked, goals))
     if ranking_path is not None:
         goal_ranking.write_goal_ranking(ranking_path, ranked)
-        console.print(f"wrote {ranking_path}")
+        console.print(f"wrote {escape(str(ranking_path))}")

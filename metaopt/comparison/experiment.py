@@ -7,6 +7,7 @@ from __future__ import annotations
 import dataclasses
 import itertools
 import json
+import math
 import warnings
 from collections.abc import Iterable
 from dataclasses import dataclass, field, fields
@@ -247,6 +248,8 @@ def _experiment(raw: dict[str, Any], plugins: Registry) -> Experiment:
     target = raw.get("target")
     if target is not None and (isinstance(target, bool) or not isinstance(target, int | float)):
         raise ConfigError(f"'target' must be a number, got {target!r}")
+    if target is not None and not math.isfinite(target):
+        raise ConfigError(f"target must be a finite fitness, got {target}")
     experiment = Experiment(
         name=name,
         problem=problem_info.name,

@@ -50,16 +50,25 @@ def convergence(
     fitness: np.ndarray, maximize: bool, window: int | None = None, screened: int = 0
 ) -> Convergence:
     """The curves of fitnesses in evaluation order (NaN = failed, or one of ``screened``
-    screened ones); window None = 5 % of them."""
+    screened ones); window None = 5 % of them; no fitness: empty curves."""
     fitness = np.asarray(fitness, dtype=float)
     if window is None:
         window = max(1, round(WINDOW_FRACTION * len(fitness)))
+    if not len(fitness):  # a run stopped before its first evaluation (an early Ctrl-C)
+        return Convergence(fitness, fitness.copy(), fitness.copy(), window, maximize, screened)
     best = (np.fmax if maximize else np.fmin).accumulate(fitness) if len(fitness) else fitness
     padded = np.concatenate([np.full(window - 1, np.nan), fitness])
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", RuntimeWarning)  # windows of failures only: NaN
         mean = np.nanmean(np.lib.stride_tricks.sliding_window_view(padded, window), axis=1)
     return Convergence(fitness, best, mean, window, maximize, screened)
+
+
+def require_evaluations(store: RunStore, run: RunRecord) -> None:
+    """ConfigError (one line) for a run without a stored evaluation (stopped before its
+    first, e.g. by an early Ctrl-C): it has no course to show or draw."""
+    if store.evaluation_counts(run.id).stored == 0:
+        raise ConfigError(f"run {run.id} has no evaluations yet; nothing to show")
 
 
 def run_convergence(store: RunStore, run: RunRecord, window: int | None = None) -> Convergence:

@@ -55,8 +55,14 @@ def params_table(title: str, params: Sequence[Param]) -> Table:
     for column in ("parameter", "type", "default", "range", "meaning"):
         table.add_column(column, overflow="fold")
     for p in params:
-        table.add_row(p.name, p.type_name, str(p.default), p.range_text(), p.help)
+        table.add_row(*_plain(p.name, p.type_name, str(p.default), p.range_text(), p.help))
     return table
+
+
+def _plain(*cells: str) -> list[str]:
+    """Cells of data (names, labels, settings, paths, messages) escaped, so that a bracket in
+    them shows as typed instead of being read as rich markup."""
+    return [escape(cell) for cell in cells]
 
 
 def plugin_overview(kind: str, infos: Sequence, sources: Sequence[str]) -> Table:
@@ -69,12 +75,14 @@ def plugin_overview(kind: str, infos: Sequence, sources: Sequence[str]) -> Table
     table.add_column("range", overflow="fold")
     table.add_column("summary / meaning", overflow="fold")
     for info, source in zip(infos, sources):
-        summary = f"{info.summary} [dim](from {source})[/]"
+        summary = f"{escape(info.summary)} [dim](from {escape(source)})[/]"
         if getattr(info, "unavailable", ""):
             summary = f"[bold red]unavailable:[/] {escape(info.unavailable)}\n{summary}"
-        table.add_row(f"[bold cyan]{info.name}[/]", "", "", "", summary)
+        table.add_row(f"[bold cyan]{escape(info.name)}[/]", "", "", "", summary)
         for p in getattr(info, "params", ()):
-            table.add_row(f"  {p.name}", p.type_name, str(p.default), p.range_text(), p.help)
+            table.add_row(
+                *_plain(f"  {p.name}", p.type_name, str(p.default), p.range_text(), p.help)
+            )
         table.add_section()
     return table
 
@@ -84,7 +92,7 @@ class RichProgress:
 
     def __init__(self, console: Console, label: str) -> None:
         self._bar = Progress(
-            TextColumn("[bold]{task.description}"),
+            TextColumn("{task.description}", style="bold", markup=False),  # a label is data
             BarColumn(),
             MofNCompleteColumn(),
             TextColumn("best {task.fields[best]}"),
@@ -137,18 +145,18 @@ def result_table(result: RunResult, db_path: str, seed: int, startup_time: float
     table = Table(title=f"Run {result.run_id} ({result.status})", title_justify="left")
     table.add_column("", style="bold")
     table.add_column("value")
-    table.add_row("best fitness", format_number(result.best_fitness))
+    table.add_row(*_plain("best fitness", format_number(result.best_fitness)))
     for name in _shown_metrics(result.best_metrics, result.key_metrics):
-        table.add_row(f"  {name}", format_number(result.best_metrics[name]))
+        table.add_row(*_plain(f"  {name}", format_number(result.best_metrics[name])))
     if result.best_x is not None:
         for name, value in zip(result.names, result.best_x):
-            table.add_row(f"  {name}", format_number(float(value)))
+            table.add_row(*_plain(f"  {name}", format_number(float(value))))
     left_out = _left_out(result.failed, result.screened)
-    table.add_row("evaluations", f"{result.evaluations} {left_out}")
+    table.add_row(*_plain("evaluations", f"{result.evaluations} {left_out}"))
     starting = f" (of which starting workers {startup_time:.2f} s)" if startup_time >= 0.01 else ""
-    table.add_row("wall time", f"{result.wall_time:.2f} s{starting}")
-    table.add_row("seed", str(seed))
-    table.add_row("run id", f"{result.run_id}  (in {db_path})")
+    table.add_row(*_plain("wall time", f"{result.wall_time:.2f} s{starting}"))
+    table.add_row(*_plain("seed", str(seed)))
+    table.add_row(*_plain("run id", f"{result.run_id}  (in {db_path})"))
     return table
 
 
@@ -175,7 +183,7 @@ def replay_table(replay: Replay) -> Table:
     """`metaopt replay`: the stored metrics beside the replayed ones."""
     source = replay.source
     table = Table(
-        title=f"{source.label} replayed ({_replay_setting(source, replay.problem_params)})",
+        title=escape(f"{source.label} replayed ({_replay_setting(source, replay.problem_params)})"),
         title_justify="left",
     )
     stored = _stored_scores(source)
@@ -188,7 +196,7 @@ def replay_table(replay: Replay) -> Table:
         value = replayed.fitness if name == "fitness" else replayed.metrics.get(name)
         shown = ("failed" if name == "fitness" else "-") if failed else format_number(value)
         before = [] if stored is None else [format_number(stored.get(name))]
-        table.add_row(name, *before, shown)
+        table.add_row(*_plain(name, *before, shown))
     return table
 
 
@@ -265,7 +273,7 @@ def runs_table(
     for header in headers:  # cells fold in a narrow terminal: every column stays
         table.add_column(header, overflow="fold")
     for row in rows:
-        table.add_row(*row)
+        table.add_row(*_plain(*row))
     return table
 
 
@@ -339,28 +347,28 @@ def run_detail(
     table = Table(title=f"run {run.id}", title_justify="left", show_header=False)
     table.add_column("", style="bold", overflow="fold")
     table.add_column("", overflow="fold")
-    table.add_row("status", run.status + (f" ({run.message})" if run.message else ""))
-    table.add_row("optimizer", run.optimizer)
+    table.add_row(*_plain("status", run.status + (f" ({run.message})" if run.message else "")))
+    table.add_row(*_plain("optimizer", run.optimizer))
     for name, value in run.optimizer_params.items():
-        table.add_row(f"  {name}", str(value))
-    table.add_row("problem", f"{run.problem} ({run.sense})")
+        table.add_row(*_plain(f"  {name}", str(value)))
+    table.add_row(*_plain("problem", f"{run.problem} ({run.sense})"))
     for name, value in run.problem_params.items():
-        table.add_row(f"  {name}", str(value))
-    table.add_row("settings", settings_text(run.settings))
-    table.add_row("seed", str(run.seed))
+        table.add_row(*_plain(f"  {name}", str(value)))
+    table.add_row(*_plain("settings", settings_text(run.settings)))
+    table.add_row(*_plain("seed", str(run.seed)))
     left_out = _left_out(counts.failed, counts.screened)
-    table.add_row("evaluations", f"{counts.stored} of {run.budget} {left_out}")
-    table.add_row("started / ended", f"{run.started_at} / {run.ended_at or '-'}")
-    table.add_row("wall time", "-" if run.wall_time is None else f"{run.wall_time:.2f} s")
+    table.add_row(*_plain("evaluations", f"{counts.stored} of {run.budget} {left_out}"))
+    table.add_row(*_plain("started / ended", f"{run.started_at} / {run.ended_at or '-'}"))
+    table.add_row(*_plain("wall time", "-" if run.wall_time is None else f"{run.wall_time:.2f} s"))
     if best is not None:
-        table.add_row("best fitness", f"{format_number(best.fitness)} ({best.describe()})")
+        table.add_row(*_plain("best fitness", f"{format_number(best.fitness)} ({best.describe()})"))
         for name, value in best.metrics.items():
-            table.add_row(f"  {name}", format_number(value))
+            table.add_row(*_plain(f"  {name}", format_number(value)))
         for variable, value in zip(run.space, best.x):
-            table.add_row(f"  {variable['name']}", format_number(float(value)))
+            table.add_row(*_plain(f"  {variable['name']}", format_number(float(value))))
     if recent is not None:
         _recent_rows(table, recent)
-    table.add_row("versions", ", ".join(f"{k} {v}" for k, v in run.versions.items()))
+    table.add_row(*_plain("versions", ", ".join(f"{k} {v}" for k, v in run.versions.items())))
     return table
 
 
@@ -370,24 +378,28 @@ def _recent_rows(table: Table, recent: RecentFigures) -> None:
     failed = recent.evaluations - recent.succeeded - recent.screened
     heading = f"last {recent.evaluations} evaluations ({recent.first}-{recent.last})"
     if recent.fitness_quartiles is None:
-        table.add_row(heading, f"fitness: all {failed} failed")
+        table.add_row(*_plain(heading, f"fitness: all {failed} failed"))
         return
     lower, median, upper = recent.fitness_quartiles
     failures = f", {failed} failed" if failed else ""
     if recent.screened:  # their fitness is unknown, and worse than the completed ones'
         failures += f"; {recent.screened} screened, the figures are the other {recent.succeeded}"
     table.add_row(
-        heading,
-        f"median fitness {format_number(median)} (quartiles {format_number(lower)} to "
-        f"{format_number(upper)}{failures})",
+        *_plain(
+            heading,
+            f"median fitness {format_number(median)} (quartiles {format_number(lower)} to "
+            f"{format_number(upper)}{failures})",
+        )
     )
     for metric in recent.metrics:
         # a metric some evaluations lack (nao-walk's flight: none after a fall) says its count
         among = f" of {metric.count}" if metric.count != recent.succeeded else ""
         if metric.is_share:
-            table.add_row(f"  {metric.name}", f"{metric.value:.0%} at 1 (share{among})")
+            table.add_row(*_plain(f"  {metric.name}", f"{metric.value:.0%} at 1 (share{among})"))
         else:
-            table.add_row(f"  {metric.name}", f"{format_number(metric.value)} (median{among})")
+            table.add_row(
+                *_plain(f"  {metric.name}", f"{format_number(metric.value)} (median{among})")
+            )
 
 
 def history_table(run: RunRecord, history: RunHistory) -> Table:
@@ -407,7 +419,8 @@ def history_table(run: RunRecord, history: RunHistory) -> Table:
     for header in headers:
         table.add_column(header, justify="right")
     for name in history.metrics:
-        table.add_column(f"{name} ({history.kind(name)})", justify="right", overflow="fold")
+        header = escape(f"{name} ({history.kind(name)})")
+        table.add_column(header, justify="right", overflow="fold")
     if history.spread:
         table.add_column("spread", justify="right")
     for window in history.windows:
@@ -432,7 +445,7 @@ def history_table(run: RunRecord, history: RunHistory) -> Table:
                 cells.append(format_number(value))
         if history.spread:
             cells.append("-" if window.spread is None else f"{window.spread:.4f}")
-        table.add_row(*cells)
+        table.add_row(*_plain(*cells))
     return table
 
 
@@ -494,8 +507,8 @@ def robustness_table(
         inert.setdefault((engine, reason), []).append(cell)
     caption = "\n".join(f"left out on {engine} ({', '.join(cells)}): {reason}"
                          for (engine, reason), cells in inert.items())  # fmt: skip
-    table = Table(title=f"{label}: perturbation table {version}", title_justify="left",
-                  caption=caption or None, caption_justify="left")  # fmt: skip
+    table = Table(title=escape(f"{label}: perturbation table {version}"), title_justify="left",
+                  caption=escape(caption) or None, caption_justify="left")  # fmt: skip
     table.add_column("perturbation")
     table.add_column("engine")
     table.add_column("seeds", justify="right")
@@ -513,7 +526,7 @@ def robustness_table(
             value = result.summary(metric)[0]
             cells.append(_figure_cell(value, ".0%" if is_rate(metric) else ".3f"))
         seeds = f"{len(result.samples)}" + (f" ({result.failed} failed)" if result.failed else "")
-        table.add_row(result.cell, result.engine, seeds, *cells)
+        table.add_row(*_plain(result.cell, result.engine, seeds, *cells))
     return table
 
 
@@ -530,15 +543,15 @@ def search_medians_table(tables: Sequence, summary: Medians) -> Table:
     _add_figure_columns(table, first.metrics)
     for search in tables:
         for engine, figures in search.figures.items():
-            table.add_row(search.source, search.candidate, _engine_cell(search, engine),
-                          *_figure_cells(first.metrics, figures))  # fmt: skip
+            table.add_row(*_plain(search.source, search.candidate, _engine_cell(search, engine),
+                          *_figure_cells(first.metrics, figures)))  # fmt: skip
     table.add_section()
     for label, per_engine in (
         (f"median of {summary.count}", summary.figures),
         (f"sd over {summary.count}", summary.spread),
     ):
         for engine, figures in per_engine.items():
-            table.add_row(label, "", engine, *_figure_cells(first.metrics, figures))
+            table.add_row(*_plain(label, "", engine, *_figure_cells(first.metrics, figures)))
     return table
 
 
@@ -562,7 +575,7 @@ def paired_differences_table(paired: PairedDifferences, metrics: Sequence[str]) 
             shown = f"{value * 100:+.1f} pp" if is_rate(metric) else f"{value:+.3f}"
             up, down = paired.up[engine][metric], paired.down[engine][metric]
             cells.append(f"{shown} ({up}↑ {down}↓, p {paired.sign_test(engine, metric):.2f})")
-        table.add_row(engine, *cells)
+        table.add_row(*_plain(engine, *cells))
     return table
 
 
@@ -589,9 +602,9 @@ def goal_ranking_table(ranked: Sequence, goals: Sequence) -> Table:
             head = [str(number), *([candidate.source] if len(sources) > 1 else []),
                     candidate.candidate, str(entry.missed), f"{entry.margin:+.3f}"]  # fmt: skip
             missed = missed_goals(figures, candidate.failed[engine], goals)
-            table.add_row(*(head if row == 0 else [""] * len(head)),
+            table.add_row(*_plain(*(head if row == 0 else [""] * len(head)),
                           _engine_cell(candidate, engine), *_figure_cells(first.metrics, figures),
-                          ", ".join(map(str, missed)))  # fmt: skip
+                          ", ".join(map(str, missed))))  # fmt: skip
     return table
 
 
@@ -659,8 +672,8 @@ def robustness_ranking(
                 else ("",) * (3 + len(margin))
             )
             speed = total.summary(metrics[0])[0]
-            table.add_row(*first, total.engine, f"{mean:.3f}", f"{speed:.3f}",
-                          *(f"{total.summary(m)[0]:.0%}" for m in rates))  # fmt: skip
+            table.add_row(*_plain(*first, total.engine, f"{mean:.3f}", f"{speed:.3f}",
+                          *(f"{total.summary(m)[0]:.0%}" for m in rates)))  # fmt: skip
     return table
 
 
@@ -694,7 +707,7 @@ def replay_seeds_table(replay: SeedReplay) -> Table:
         f"({_replay_setting(source, replay.problem_params)})"
         + (f", {failed} failed" if failed else "")
     )
-    table = Table(title=title, title_justify="left")
+    table = Table(title=escape(title), title_justify="left")
     stored = _stored_scores(source)
     for column in ("", *(["stored"] if stored is not None else []), "median", "IQR"):
         table.add_column(column, justify="left" if not column else "right")
@@ -707,5 +720,5 @@ def replay_seeds_table(replay: SeedReplay) -> Table:
         else:
             row = [format_number(median), f"{format_number(low)} to {format_number(high)}"]
         before = [] if stored is None else [format_number(stored.get(name))]
-        table.add_row(name, *before, *row)
+        table.add_row(*_plain(name, *before, *row))
     return table

@@ -18,7 +18,13 @@ from metaopt.assessment.replay import replay_params
 from metaopt.comparison.experiment import Experiment
 from metaopt.errors import ConfigError
 from metaopt.plugins import Registry
-from metaopt.reporting.convergence import best_so_far_band, group_runs, mean_band, run_convergence
+from metaopt.reporting.convergence import (
+    best_so_far_band,
+    group_runs,
+    mean_band,
+    require_evaluations,
+    run_convergence,
+)
 from metaopt.reporting.plots import bands_figure, convergence_figure, save_figure
 from metaopt.storage.experiment_store import ExperimentStore
 from metaopt.storage.run_store import RunRecord, RunStore
@@ -34,8 +40,10 @@ class Figures:
 
 
 def run_figures(store: RunStore, run_id: int | str, plugins: Registry) -> Figures:
-    """Convergence of run ``run_id``, plus its problem's figures of the best candidate."""
+    """Convergence of run ``run_id``, plus its problem's figures of the best candidate;
+    ConfigError for a run without evaluations."""
     run = store.run(run_id)
+    require_evaluations(store, run)
     title = f"Run {run.id}: {run.optimizer} on {run.problem}, seed {run.seed}"
     curves = run_convergence(store, run)
     if run.problem not in plugins.problems:
@@ -62,8 +70,11 @@ def run_figures(store: RunStore, run_id: int | str, plugins: Registry) -> Figure
 
 
 def comparison_figures(store: RunStore, run_ids: list[str], group_by: str) -> Figures:
-    """Median and quartile bands of the runs' best so far, one band per group of runs."""
+    """Median and quartile bands of the runs' best so far, one band per group of runs;
+    ConfigError where a run has no evaluations (every band would end before it began)."""
     runs = [store.run(run_id) for run_id in run_ids]
+    for run in runs:
+        require_evaluations(store, run)
     problems = sorted({run.problem for run in runs})
     if len(problems) > 1:
         raise ConfigError(f"runs compare only on one problem; these are on {', '.join(problems)}")

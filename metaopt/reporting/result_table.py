@@ -7,6 +7,7 @@ import csv
 from dataclasses import dataclass
 from typing import Any, TextIO
 
+from rich.markup import escape
 from rich.table import Table
 
 Row = dict[str, Any]
@@ -53,14 +54,15 @@ class ResultTable:
         return [name for column in self.columns for name in column.fields]
 
     def to_rich(self) -> Table:
-        """The terminal table (the columns ``in_terminal``)."""
+        """The terminal table (the columns ``in_terminal``); its text is shown as it is, never
+        read as rich markup (a label or setting may hold brackets)."""
         shown = [column for column in self.columns if column.in_terminal]
-        table = Table(title=self.title, title_justify="left")
+        table = Table(title=escape(self.title), title_justify="left")
         for index, column in enumerate(shown):
             justify = "left" if index < 2 else "right"
-            table.add_column(column.header, justify=justify, overflow="fold")
+            table.add_column(escape(column.header), justify=justify, overflow="fold")
         for row in self.rows:
-            table.add_row(*(column.render(row) for column in shown))
+            table.add_row(*(escape(column.render(row)) for column in shown))
         return table
 
     def to_markdown(self) -> str:

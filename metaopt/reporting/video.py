@@ -7,6 +7,8 @@ ffmpeg that imageio-ffmpeg ships, so no system ffmpeg is needed and no video is 
 
 from __future__ import annotations
 
+import os
+import tempfile
 from collections.abc import Generator
 from pathlib import Path
 from typing import Any
@@ -17,6 +19,7 @@ import numpy as np
 from metaopt.assessment.replay import ReplaySource, replay_params
 from metaopt.errors import ConfigError, MetaoptError
 from metaopt.plugins import Registry
+from metaopt.storage.whole_file import check_regular
 
 #: Video size (width, height), pixels, and frames per second of simulated time.
 VIDEO_SIZE = (480, 360)
@@ -24,21 +27,45 @@ VIDEO_FPS = 25
 
 
 class Mp4Writer:
-    """Frames (height, width, 3) uint8 RGB in, an H.264 MP4 at path out; the file is opened
-    with the first frame, so nothing is written when none comes."""
+    """Frames (height, width, 3) uint8 RGB in, an H.264 MP4 at path out, written whole or not
+    at all: encoded into a hidden temporary file beside path (opened with the first frame, so
+    nothing is written when none comes), renamed over path when the block ends well and
+    removed when it ends with an error or Ctrl-C, so an earlier file at path stays as it was.
+
+    ``with Mp4Writer(path, size, fps) as writer: writer(frame) ...``
+    """
 
     def __init__(self, path: Path, size: tuple[int, int], fps: int) -> None:
+        check_regular(path)  # a FIFO or device is refused, as for every whole-file write
         self.path, self.size, self.fps = path, size, fps
         self.frames = 0
         self._encoder: Generator[Any, bytes, None] | None = None
+        self._temporary: Path | None = None
+
+    def __enter__(self) -> Mp4Writer:
+        return self
+
+    def __exit__(self, error_type: type[BaseException] | None, *rest: object) -> None:
+        """Finish and move the file into place when the block succeeded; else discard it."""
+        if error_type is None:
+            self.close()
+        else:
+            self.discard()
 
     def __call__(self, frame: np.ndarray) -> None:
+        """Encode one frame; ValueError for one of another size or type."""
         width, height = self.size
         if frame.shape != (height, width, 3) or frame.dtype != np.uint8:
             raise ValueError(f"frame {frame.shape} {frame.dtype}: expected ({height}, {width}, 3)")
         if self._encoder is None:
+            target = Path(os.path.realpath(self.path))  # a symlink is written through
+            descriptor, temporary = tempfile.mkstemp(
+                dir=target.parent, prefix=f".{target.name}.", suffix=".mp4"
+            )
+            os.close(descriptor)
+            self._temporary = Path(temporary)
             self._encoder = imageio_ffmpeg.write_frames(
-                str(self.path), self.size, fps=self.fps, codec="libx264", pix_fmt_out="yuv420p",
+                temporary, self.size, fps=self.fps, codec="libx264", pix_fmt_out="yuv420p",
                 macro_block_size=2, output_params=["-preset", "veryfast"],
             )  # fmt: skip
             self._encoder.send(None)
@@ -46,10 +73,29 @@ class Mp4Writer:
         self.frames += 1
 
     def close(self) -> None:
-        """Finish the file (flush the encoder)."""
-        if self._encoder is not None:
-            self._encoder.close()
-            self._encoder = None
+        """Finish the file (flush the encoder) and rename it over path; on an error in doing
+        so, remove it."""
+        try:
+            if self._encoder is not None:
+                self._encoder.close()
+                self._encoder = None
+            if self._temporary is not None:
+                os.replace(self._temporary, os.path.realpath(self.path))
+                self._temporary = None
+        except BaseException:
+            self.discard()
+            raise
+
+    def discard(self) -> None:
+        """Stop the encoder and remove the temporary file: path stays as it was."""
+        try:
+            if self._encoder is not None:
+                encoder, self._encoder = self._encoder, None
+                encoder.close()
+        finally:
+            if self._temporary is not None:
+                self._temporary.unlink(missing_ok=True)
+                self._temporary = None
 
 
 def film_candidate(
@@ -61,17 +107,18 @@ def film_candidate(
     fps: int = VIDEO_FPS,
 ) -> int:
     """Film ``source``'s candidate with its (first) seed, problem parameters as stored but for
-    ``overrides``, into path; returns the number of frames (an error keeps those so far)."""
+    ``overrides``, into path; returns the number of frames. An error (or Ctrl-C) writes no
+    file: one at path before stays as it was (Mp4Writer)."""
     info, params = replay_params(source, plugins, overrides)
     problem = info.factory(**params)
-    writer = Mp4Writer(path, size, fps)
     try:
-        problem.video(source.x, source.seed, writer, size, fps)
-    except NotImplementedError as missing:
-        raise ConfigError(f"problem {source.problem!r}: {missing}") from None
+        with Mp4Writer(path, size, fps) as writer:
+            try:
+                problem.video(source.x, source.seed, writer, size, fps)
+            except NotImplementedError as missing:
+                raise ConfigError(f"problem {source.problem!r}: {missing}") from None
+            if writer.frames == 0:
+                raise MetaoptError(f"{source.label} gave no frame to film")
     finally:
-        writer.close()
         problem.close()
-    if writer.frames == 0:
-        raise MetaoptError(f"{source.label} gave no frame to film")
     return writer.frames

@@ -36,6 +36,11 @@ class Progress(Protocol):
         """``done`` evaluations are finished; ``best`` is the best fitness so far."""
 
 
+#: Start points past the budget are never evaluated, and a run stores its optimizer's initial
+#: population as its start points even where the budget is smaller (resumes must accept it):
+#: more than the budget's candidates is refused only past this, where it is a slip, not a
+#: population (each is a row of the problem's width in memory).
+MAX_START_POINTS = 1_000_000
 #: how the message of a run that stopped at its max time begins (it can be resumed for more)
 MAX_TIME_STOP = "stopped at its max time"
 
@@ -129,6 +134,13 @@ class RunSettings:
             raise ConfigError(
                 f"start points must be 0 (the optimizer's initial population) or more, "
                 f"got {self.start_points}"
+            )
+        candidates = budget // self.resample
+        if self.start_points > max(candidates, MAX_START_POINTS):
+            raise ConfigError(
+                f"{self.start_points} start points are more than the {candidates} candidates "
+                f"the budget evaluates (budget {budget}, resample {self.resample}); ask for "
+                f"at most {candidates}"
             )
 
 

@@ -12,7 +12,6 @@ from __future__ import annotations
 from collections.abc import Iterator
 from contextlib import contextmanager
 from pathlib import Path
-from typing import Any
 
 from metaopt.storage.run_store import DEFAULT_DB, RunRecord, RunStore
 
@@ -55,16 +54,14 @@ class ExperimentStore(RunStore):
         finally:
             self._joining = None
 
-    def create_run(self, **fields: Any) -> int:
-        """Insert a new run (RunStore.create_run) and record its membership, if joining."""
-        run_id = super().create_run(**fields)
+    def _record_with_new_run(self, run_id: int) -> None:
+        """A run created while joining becomes that member, in the run's own transaction: no
+        interruption can leave a member's run outside its cell."""
         if self._joining is not None:
-            with self._lock, self._transaction():
-                self._connection.execute(
-                    "INSERT OR REPLACE INTO experiment_runs VALUES (?, ?, ?, ?)",
-                    (*self._joining, run_id),
-                )
-        return run_id
+            self._connection.execute(
+                "INSERT OR REPLACE INTO experiment_runs VALUES (?, ?, ?, ?)",
+                (*self._joining, run_id),
+            )
 
     def member(self, experiment: str, cell: str, seed: int) -> RunRecord | None:
         """The run recorded as (experiment, cell, seed), or None."""

@@ -318,7 +318,13 @@ class RunStore:
                     _now(),
                 ),
             )
-            return int(cursor.lastrowid)
+            run_id = int(cursor.lastrowid)
+            self._record_with_new_run(run_id)
+            return run_id
+
+    def _record_with_new_run(self, run_id: int) -> None:
+        """What a subclass records about a run it creates, in create_run's transaction (so
+        both or neither are stored); nothing here."""
 
     def add_evaluation(
         self,

@@ -10,11 +10,26 @@ from contextlib import contextmanager
 from pathlib import Path
 from typing import IO
 
+from metaopt.errors import ConfigError
+
+
+def check_regular(path: Path) -> None:
+    """ConfigError if ``path`` exists but is not a regular file (a FIFO, device, socket), which
+    a whole-file write would replace rather than write to; a symlink is judged by its target."""
+    if Path(path).exists() and not Path(path).is_file() and not Path(path).is_dir():
+        raise ConfigError(
+            f"{path} is not a regular file (a FIFO, device or socket); "
+            "give a regular file's path, a new one, or a symlink to a regular file"
+        )
+
 
 @contextmanager
 def written_whole(path: Path, binary: bool = False) -> Iterator[IO]:
     """A handle (text, or bytes with ``binary``) whose content lands at ``path`` only when the
-    block succeeds: written to a hidden temporary file beside it, then renamed over it."""
+    block succeeds: written to a hidden temporary file beside it, then renamed over it. A
+    symlink is written through (its target replaced); a FIFO, device or socket is refused."""
+    check_regular(path)
+    path = Path(os.path.realpath(path))
     descriptor, temporary = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.")
     umask = os.umask(0)
     os.umask(umask)

@@ -273,8 +273,9 @@ class _OptimizerHarness:
         from the JSON state recommends the same (``RUN:recommended`` rebuilds it so)."""
         space = SPACES[MAIN_SPACE]
         optimizer = self.build(space, 0)
-        stop = 3
-        self.drive(optimizer, self.sizes(optimizer, stop), 0, "run")
+        sizes = self.sizes(optimizer, 3)
+        stop = len(sizes)  # asks made before the recommendation is read
+        self.drive(optimizer, sizes, 0, "run")
         point = _recommended(optimizer, f"after {stop} asks")
         if point is not None and (point.shape != (space.dim,) or not space.contains(point)):
             raise ConformanceError(

@@ -130,7 +130,7 @@ PARAMS = (
           low=0, high=100),
     Param("friction", float, 0.0, "ground friction coefficient; inf = no sliding limit (the "
           "paper's simulator; ODE only); 0 = the engine's default (1 on MuJoCo and PyBullet, "
-          "inf on ODE); MuJoCo takes at most 3, PyBullet 10", low=0.0),
+          "inf on ODE); MuJoCo takes at most 3, PyBullet 10", low=0.0, infinite=True),
     Param("friction_scale", float, 1.0, "multiplies the ground friction (the given one or the "
           "engine's default; an unlimited one stays unlimited): the friction perturbation",
           low=0.0, low_open=True, high=100.0),
