@@ -2,12 +2,11 @@
 
 from __future__ import annotations
 
+import warnings
 from collections.abc import Iterable
 from typing import Any
 
-import click
-
-from metaopt.errors import ConfigError
+from metaopt.errors import ConfigError, SettingWarning
 from metaopt.optimizer import OptimizerInfo
 from metaopt.params import Param, suggest
 from metaopt.problem import ProblemInfo
@@ -68,14 +67,15 @@ def parse_problem_settings(pairs: Iterable[str], problem: ProblemInfo) -> dict[s
 
 
 def _once(given: dict[tuple[str, str], str], target: tuple[str, str], name: str, text: str) -> None:
-    """ConfigError if ``target`` was set before; else note its value: a command that runs one
-    setting takes one value of each parameter (only metaopt compare makes a grid of several)."""
+    """Note a parameter's value; one set before is replaced (the last value is used, so a
+    script's defaults can be overridden by a later --set) with a SettingWarning saying so: a
+    command that runs one setting takes one value (only metaopt compare makes a grid)."""
     if target in given:
-        context = click.get_current_context(silent=True)
-        command = f"metaopt {context.info_name}" if context and context.parent else "metaopt run"
-        raise ConfigError(
-            f"--set {name} given twice ({given[target]}, {text}); {command} takes one value "
-            "(a grid over values is metaopt compare's)"
+        warnings.warn(
+            f"--set {name} is given twice ({given[target]}, then {text}): the last, {text}, is "
+            "used (a grid over values is metaopt compare's)",
+            SettingWarning,
+            stacklevel=3,
         )
     given[target] = text
 

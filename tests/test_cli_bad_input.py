@@ -8,6 +8,7 @@ every file in the working folder as they were."""
 from __future__ import annotations
 
 import hashlib
+import json
 import sqlite3
 import string
 from pathlib import Path
@@ -21,6 +22,7 @@ from metaopt.cli import main
 from metaopt.errors import ConfigError
 from metaopt.plugins import registry
 from metaopt.scaffold import plugin_names
+from tests.conftest import metaopt_cli
 
 MAX_INT64 = 2**63 - 1
 #: Characters of generated names and values: letters, digits, punctuation that means something
@@ -426,23 +428,26 @@ def test_compare_refuses_a_target_that_is_no_finite_fitness(workplace, monkeypat
 
 
 @pytest.mark.parametrize(
-    ("command", "pairs", "needles"),
+    ("pairs", "warned", "stored"),
     [
-        (RUN_BASE, ["dim=3"], ["--set dim given twice (2, 3)", "metaopt run takes one value"]),
-        (RUN_BASE, ["problem.dim=3"], ["--set problem.dim given twice (2, 3)"]),
-        (RUN_BASE[:-2], ["hms=2", "o.hms=3"], ["--set o.hms given twice (2, 3)"]),
-        (["replay", "1"], ["dim=2", "sphere.dim=3"], ["--set sphere.dim given twice (2, 3)",
-                                                      "metaopt replay takes one value"]),
+        (["dim=3"], "--set dim is given twice (2, then 3): the last, 3, is used", {"dim": 3}),
+        (["problem.dim=3"], "--set problem.dim is given twice (2, then 3)", {"dim": 3}),
     ],
-)  # fmt: skip
-def test_a_setting_given_twice_is_refused_outside_compare(workplace, monkeypatch, command,
-                                                          pairs, needles):  # fmt: skip
-    """run kept the last of two values without a word, while compare makes a grid of them."""
-    monkeypatch.chdir(workplace)
-    before = _snapshot(workplace)
-    args = [*command, *(a for pair in pairs for a in ("--set", pair))]
-    _one_line(CliRunner().invoke(main, args), *needles, "a grid over values is metaopt compare's")
-    assert _snapshot(workplace) == before
+)
+def test_a_setting_given_twice_outside_compare_uses_the_last_and_says_so(
+    tmp_path, pairs, warned, stored
+):
+    """run used the last of two values without a word, while compare makes a grid of them: it
+    still uses the last (a script's defaults are overridden so), in one warning line."""
+    args = [*RUN_BASE, *(a for pair in pairs for a in ("--set", pair))]
+    done = metaopt_cli(*args, "--db", str(tmp_path / "m.db"), cwd=tmp_path)
+    assert done.returncode == 0, done.stderr
+    lines = [line for line in done.stderr.splitlines() if line.startswith("Warning: --set")]
+    assert len(lines) == 1 and warned in lines[0], done.stderr
+    assert "a grid over values is metaopt compare's" in lines[0]
+    shown = json.loads(metaopt_cli("show", "1", "--format", "json", "--db",
+                                   str(tmp_path / "m.db"), cwd=tmp_path).stdout)  # fmt: skip
+    assert shown["problem_params"] == stored
 
 
 def test_compare_still_makes_a_grid_of_a_setting_given_twice(tmp_path, monkeypatch):
@@ -462,5 +467,5 @@ def test_start_points_far_past_the_budget_are_refused_by_check(workplace, monkey
             "--start-from", "1", "--start-points", "100000000000000"]  # fmt: skip
     for extra in (["--check"], []):
         _one_line(CliRunner().invoke(main, [*args, *extra]), "100000000000000 start points",
-                  "the 20 candidates the budget evaluates", "at most 20")  # fmt: skip
+                  "the 20 candidates the budget evaluates", "at most 1000000")  # fmt: skip
     assert _snapshot(workplace) == before

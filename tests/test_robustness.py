@@ -38,6 +38,7 @@ from metaopt.storage.run_store import RunStore
 from metaopt_problems.nao_walk.robustness import NOMINAL_WORLD, STANDARD_TABLE
 from metaopt_problems.nao_walk.stored_gaits import gait_vector, load_gait, stored_gait_names
 from tests.conftest import metaopt_cli, one_error_line
+from tests.engines import needs_ode
 
 TINY = ("hs_walk", "--engines", "mujoco+pybullet", "--seeds", "2", "--cells",
         "nominal,latency 1", "--set", "duration=4", "--set", "lock=1")  # fmt: skip
@@ -603,6 +604,7 @@ STEADY = ("steady_walk", "--cells", "nominal", "--seeds", "1", "--set", "duratio
           "--set", "lock=1")  # fmt: skip
 
 
+@needs_ode  # steady_walk's stored backend and --engines name ODE
 def test_robustness_refuses_a_backend_setting_an_engine_twice_and_a_changed_space(
     tmp_path: Path,
 ) -> None:
@@ -624,6 +626,7 @@ def test_robustness_refuses_a_backend_setting_an_engine_twice_and_a_changed_spac
         assert list(tmp_path.iterdir()) == []
 
 
+@needs_ode  # steady_walk's stored backend and --engines name ODE
 def test_robustness_keeps_an_unchanged_space_and_prints_paths_as_written(tmp_path: Path) -> None:
     """A --set that leaves the space as it was runs; 'wrote PATH' shows '[final]' as given."""
     done = metaopt_cli("robustness", *STEADY, "--engines", "ode", "--set", "controller=steered",

@@ -331,26 +331,20 @@ def test_dask_time_limits_leave_no_timer_behind_a_settled_evaluation():
         deadline = time.monotonic() + 10  # a cancelled timer's thread ends at once
         while time.monotonic() < deadline and _timer_threads() > before:
             time.sleep(0.05)
-        assert _timer_threads() == before
+        assert _timer_threads() <= before  # none left by this run (another's may end)
     finally:
         executor.shutdown()
     executor.shutdown()  # the run's, then its caller's: the second does nothing
 
 
-def _open_descriptors() -> int:
-    return len(os.listdir("/proc/self/fd"))
-
-
-@pytest.mark.skipif(not os.path.isdir("/proc/self/fd"), reason="counts /proc/self/fd")
 def test_process_workers_shut_down_leave_no_pipe_open():
     """Shutting the worker processes down closes every pipe to them (and the manager's wake
     pipe), not only those of workers it had to kill; a second shutdown does nothing."""
-    factory = registry().executor("process").factory
-    factory(1, None).shutdown()  # whatever multiprocessing opens once per process
-    before = _open_descriptors()
-    executor = factory(2, None)
+    executor = registry().executor("process").factory(2, None)
     futures = [executor.submit(task) for task in _sphere_tasks(4, time_limit=None)]
     assert all(future.result(timeout=120).error is None for future in futures)
+    pipes = [executor._wake_reader, executor._wake_writer]
+    pipes += [worker.connection for worker in executor._pool]
     executor.shutdown()
     executor.shutdown()
-    assert _open_descriptors() == before  # the executor itself is still referenced
+    assert len(pipes) == 4 and all(pipe.closed for pipe in pipes)

@@ -4,6 +4,7 @@ MP4 holds one frame per 1/25 s of the walk."""
 from __future__ import annotations
 
 import ctypes.util
+import os
 from pathlib import Path
 
 import imageio_ffmpeg
@@ -152,6 +153,9 @@ def test_a_video_that_fails_midway_leaves_no_file_and_the_earlier_one_as_it_was(
         for shade in range(5):
             writer(_frame(size, 40 * shade))
     assert [p.name for p in tmp_path.iterdir()] == ["walk.mp4"]
+    umask = os.umask(0)
+    os.umask(umask)
+    assert path.stat().st_mode & 0o777 == 0o666 & ~umask  # as a file opened there, not 0600
     reader = imageio_ffmpeg.read_frames(str(path))
     meta = next(reader)
     assert tuple(meta["size"]) == size and sum(1 for _ in reader) == 5

@@ -63,9 +63,10 @@
 #     (CMA-ES started at the raced basin, its step 0.05 of each range).
 #   STAGE1B_BATCH=B (2): candidates per batch; 0 is the optimizer's own (cmaes: a generation).
 #   STAGE1B_BUDGET=N (600): the most it evaluates (with DEADLINE the time usually ends it).
-#   STAGE1B_SET="NAME=VALUE ..." adds nao-walk settings, winning over the ones above, e.g.
-#     engine_score=worst (the slowest engine's score), worlds=pushes (each evaluation pushed
-#     once, 1 N·s in a drawn direction and time), flight_allowed=0.035, controller=balanced,
+#   STAGE1B_SET="NAME=VALUE ..." adds nao-walk and optimizer settings, winning over the ones
+#     above, e.g. engine_score=worst (the slowest engine's score), worlds=pushes (each
+#     evaluation pushed once, 1 N·s in a drawn direction and time), flight_allowed=0.035,
+#     controller=balanced,
 #     population=24, duration=10 engine_cap=3.5 (a 7 s walk capped at the same 0.5 m/s),
 #     fitness=robust.
 #   STAGE1B_CELLS="NAME,NAME,..." sets world_cells (cell names hold spaces, which STAGE1B_SET

@@ -16,6 +16,7 @@ import click
 
 from metaopt.errors import ConfigError
 from metaopt.storage.export import dump_json, finite_json
+from metaopt.storage.whole_file import check_regular
 
 OUTPUT_FORMATS = ("table", "csv", "json")
 format_option = click.option(
@@ -37,15 +38,11 @@ def check_output_file(path: str, option: str, suffix: str | None = None) -> Path
         raise ConfigError(f"{option} {path} is a directory; give a file path")
     if suffix is not None and target.suffix.lower() != suffix:
         raise ConfigError(f"{option} {path}: only {suffix} files are written; give a {suffix} path")
-    folder = target.parent
+    folder = Path(os.path.realpath(path)).parent  # a symlink is written where it points
     if not folder.is_dir():
         raise ConfigError(f"{option} {path}: folder {folder} does not exist; create it first")
     _check_writable(folder, option, path)
-    if target.exists() and not target.is_file():  # written whole, it would be replaced
-        raise ConfigError(
-            f"{option} {path} is not a regular file (a FIFO, device or socket); give a regular "
-            "file's path, a new one, or a symlink to a regular file"
-        )
+    check_regular(target)  # a FIFO or device: written whole, it would be replaced
     if target.exists() and not os.access(target, os.W_OK):
         raise ConfigError(f"{option} {path}: no permission to write that file")
     return target

@@ -56,7 +56,7 @@ def convergence(
         window = max(1, round(WINDOW_FRACTION * len(fitness)))
     if not len(fitness):  # a run stopped before its first evaluation (an early Ctrl-C)
         return Convergence(fitness, fitness.copy(), fitness.copy(), window, maximize, screened)
-    best = (np.fmax if maximize else np.fmin).accumulate(fitness) if len(fitness) else fitness
+    best = (np.fmax if maximize else np.fmin).accumulate(fitness)
     padded = np.concatenate([np.full(window - 1, np.nan), fitness])
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", RuntimeWarning)  # windows of failures only: NaN

@@ -8,7 +8,6 @@ ffmpeg that imageio-ffmpeg ships, so no system ffmpeg is needed and no video is 
 from __future__ import annotations
 
 import os
-import tempfile
 from collections.abc import Generator
 from pathlib import Path
 from typing import Any
@@ -19,7 +18,7 @@ import numpy as np
 from metaopt.assessment.replay import ReplaySource, replay_params
 from metaopt.errors import ConfigError, MetaoptError
 from metaopt.plugins import Registry
-from metaopt.storage.whole_file import check_regular
+from metaopt.storage.whole_file import check_regular, temporary_beside
 
 #: Video size (width, height), pixels, and frames per second of simulated time.
 VIDEO_SIZE = (480, 360)
@@ -59,14 +58,11 @@ class Mp4Writer:
             raise ValueError(f"frame {frame.shape} {frame.dtype}: expected ({height}, {width}, 3)")
         if self._encoder is None:
             target = Path(os.path.realpath(self.path))  # a symlink is written through
-            descriptor, temporary = tempfile.mkstemp(
-                dir=target.parent, prefix=f".{target.name}.", suffix=".mp4"
-            )
+            descriptor, self._temporary = temporary_beside(target, ".mp4")
             os.close(descriptor)
-            self._temporary = Path(temporary)
             self._encoder = imageio_ffmpeg.write_frames(
-                temporary, self.size, fps=self.fps, codec="libx264", pix_fmt_out="yuv420p",
-                macro_block_size=2, output_params=["-preset", "veryfast"],
+                str(self._temporary), self.size, fps=self.fps, codec="libx264",
+                pix_fmt_out="yuv420p", macro_block_size=2, output_params=["-preset", "veryfast"],
             )  # fmt: skip
             self._encoder.send(None)
         self._encoder.send(np.ascontiguousarray(frame).tobytes())

@@ -139,8 +139,9 @@ class RunSettings:
         if self.start_points > max(candidates, MAX_START_POINTS):
             raise ConfigError(
                 f"{self.start_points} start points are more than the {candidates} candidates "
-                f"the budget evaluates (budget {budget}, resample {self.resample}); ask for "
-                f"at most {candidates}"
+                f"the budget evaluates (budget {budget}, resample {self.resample}) and more "
+                f"than {MAX_START_POINTS}; ask for at most {max(candidates, MAX_START_POINTS)} "
+                f"(the run evaluates only the first {candidates})"
             )
 
 

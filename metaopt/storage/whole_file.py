@@ -23,6 +23,19 @@ def check_regular(path: Path) -> None:
         )
 
 
+def temporary_beside(path: Path, suffix: str = "") -> tuple[int, Path]:
+    """A hidden temporary file in ``path``'s folder, its descriptor and path, with the
+    permissions open() gives a new file (not mkstemp's 0600): what a whole-file write fills,
+    then renames over ``path``."""
+    descriptor, temporary = tempfile.mkstemp(
+        dir=path.parent, prefix=f".{path.name}.", suffix=suffix
+    )
+    umask = os.umask(0)
+    os.umask(umask)
+    os.chmod(temporary, 0o666 & ~umask)
+    return descriptor, Path(temporary)
+
+
 @contextmanager
 def written_whole(path: Path, binary: bool = False) -> Iterator[IO]:
     """A handle (text, or bytes with ``binary``) whose content lands at ``path`` only when the
@@ -30,10 +43,7 @@ def written_whole(path: Path, binary: bool = False) -> Iterator[IO]:
     symlink is written through (its target replaced); a FIFO, device or socket is refused."""
     check_regular(path)
     path = Path(os.path.realpath(path))
-    descriptor, temporary = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.")
-    umask = os.umask(0)
-    os.umask(umask)
-    os.chmod(temporary, 0o666 & ~umask)  # as open() would make it, not mkstemp's 0600
+    descriptor, temporary = temporary_beside(path)
     text = {} if binary else {"newline": "", "encoding": "utf-8"}
     try:
         with open(descriptor, "wb" if binary else "w", **text) as handle:

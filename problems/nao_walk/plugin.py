@@ -147,7 +147,9 @@ PARAMS = (
     Param("fall_tilt", float, 60.0, "fallen when the torso tilts further than this, degrees",
           low=0.0, high=180.0, low_open=True),
     Param("noise", float, 0.0, "disturbance scale drawn from the evaluation's seed: friction, "
-          "push, hip sensors (docs/nao-walk.md, Noise); 0 = deterministic", low=0.0, high=10.0),
+          "push, hip sensors (docs/nao-walk.md, Noise); 0 = deterministic; the friction it can "
+          "draw, friction x exp(0.2 noise), must stay within each engine's limit", low=0.0,
+          high=10.0),
     Param("mass_scale", float, 1.0, "every body's mass and inertia multiplied by this",
           low=0.1, high=10.0),
     Param("push", float, 0.0, "impulse on the torso, N·s, over one control period at "
