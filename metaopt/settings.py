@@ -41,8 +41,8 @@ def split_settings(
             else (problem_decl, problem_params, f"problem {problem.name!r}")
         )
         param: Param = declared[bare]
+        params[bare] = param.parse(text.strip(), owner)  # a bad value is refused, unwarned
         _once(given, target, name, text.strip())
-        params[bare] = param.parse(text.strip(), owner)
     return optimizer_params, problem_params
 
 
@@ -61,8 +61,8 @@ def parse_problem_settings(pairs: Iterable[str], problem: ProblemInfo) -> dict[s
         for prefix in (*_PROBLEM_PREFIXES, f"{problem.name}."):
             name = name.strip().removeprefix(prefix)
         _must_declare("problem", problem.name, name, declared)
-        _once(given, ("problem", name), written, text.strip())
         params[name] = declared[name].parse(text.strip(), f"problem {problem.name!r}")
+        _once(given, ("problem", name), written, text.strip())
     return params
 
 
