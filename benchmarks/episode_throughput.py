@@ -103,7 +103,7 @@ def time_full_run(backend: str, seed: int) -> float:
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--episodes", type=int, default=5)
-    available = [n for n, info in registry().physics_backends.items() if not info.unavailable]
+    available = registry().available_physics_backends()
     parser.add_argument("--backends", default=",".join(available))
     parser.add_argument("--run-backends", default="mujoco", help="'' to skip the 750-run timing")
     parser.add_argument("--seed", type=int, default=1)

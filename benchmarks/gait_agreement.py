@@ -67,7 +67,7 @@ def report(walks: Walks, thresholds: list[float]) -> str:
 
 def _installed() -> tuple[str, ...]:
     """The engines that run here, the project's three first in their usual order."""
-    names = [name for name, info in registry().physics_backends.items() if not info.unavailable]
+    names = registry().available_physics_backends()
     return tuple(sorted(names, key=lambda n: ENGINES.index(n) if n in ENGINES else len(ENGINES)))
 
 

@@ -24,7 +24,12 @@ import numpy as np
 
 from metaopt.physics.agreement import engine
 from metaopt.plugins import registry
-from metaopt_problems.nao_walk.stored_gaits import gait_problem, gait_vector, load_gait
+from metaopt_problems.nao_walk.stored_gaits import (
+    gait_problem,
+    gait_seed,
+    gait_vector,
+    load_gait,
+)
 
 #: Stored gaits replayed by default: the fastest on MuJoCo, and the both-engine one.
 GAITS = ("stride_mujoco", "stride_both_restarts")
@@ -37,9 +42,8 @@ def saturation(backend: str, gait_name: str) -> dict[str, float]:
     record = load_gait(gait_name)
     problem = gait_problem(record["problem_params"], backend)
     try:
-        found_by = record["found_by"]
-        seed = found_by.get("evaluation_seed", found_by["seed"])
-        walk, disturbance, push = problem.walked(seed)  # the world its evaluation walks in
+        # the world its evaluation walks in
+        walk, disturbance, push = problem.walked(gait_seed(record))
         runner = walk.runner
         sim = runner.backend
         limit = 0.99 * sim.settings.max_joint_torque
@@ -102,7 +106,7 @@ def main() -> None:
     """Print each runnable engine's saturation, response and standing (engines that cannot run
     here are left out unless --backends names them)."""
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    available = [n for n, info in registry().physics_backends.items() if not info.unavailable]
+    available = registry().available_physics_backends()
     parser.add_argument("--backends", default=",".join(available))
     parser.add_argument("--gaits", default=",".join(GAITS))
     args = parser.parse_args()

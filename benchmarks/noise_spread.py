@@ -33,7 +33,7 @@ def main() -> None:
     parser.add_argument("--seeds", type=int, default=20)
     parser.add_argument("--noise", default="0,0.5,1,2,3")
     args = parser.parse_args()
-    engines = [n for n, info in registry().physics_backends.items() if not info.unavailable]
+    engines = registry().available_physics_backends()
     columns = " | ".join(f"{engine} distance, mean ± std (min – max)" for engine in engines)
     print(f"| noise | {columns} |")
     print("|---|" + "---|" * len(engines))

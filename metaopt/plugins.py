@@ -92,6 +92,11 @@ class Registry:
             raise ConfigError(f"physics backend {name!r} is unavailable: {info.unavailable}")
         return info
 
+    def available_physics_backends(self) -> list[str]:
+        """The physics engines that can run here, in registry order (an engine whose library is
+        missing is listed by `metaopt list` but left out)."""
+        return [name for name, info in self.physics_backends.items() if not info.unavailable]
+
     def tables(self) -> dict[str, dict[str, Any]]:
         """Every kind's table by the kind's name."""
         return {

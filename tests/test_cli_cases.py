@@ -478,9 +478,10 @@ def _refused_in_process(*args: str) -> str:
     return lines[0]
 
 
-def test_a_run_refused_after_its_workers_started_stops_them(tmp_path):
+def test_a_refused_run_or_resume_leaves_no_worker_process(tmp_path):
     """`run` and `resume` checks that only the built optimizer or the stored run can make
-    (CMA-ES is generational; the run already finished) leave no worker process behind."""
+    (CMA-ES is generational; the run already finished; a budget not above it) are one line and
+    leave no worker process behind: they are made before any worker starts."""
     db = str(tmp_path / "metaopt.db")
     workers = ("--executor", "process", "--workers", "2", "--db", db)
     line = _refused_in_process("run", "-o", "cmaes", "-p", "sphere", "--mode", "async", *workers)

@@ -39,3 +39,14 @@ def test_environment_variable_restricts_loaded_plugins(tmp_path, outside_plugin_
     assert "hs " not in only.stdout and "harmony" not in only.stdout.lower()
     none = metaopt_cli("list", cwd=tmp_path, env={"METAOPT_LOAD_PLUGINS": ""})
     assert none.returncode == 0 and "sphere" not in none.stdout
+
+
+def test_available_physics_backends_leave_out_an_engine_that_cannot_run_here():
+    """MuJoCo and PyBullet come with their wheels; ODE needs libode8, which CI installs."""
+    from metaopt.plugins import registry
+    from tests.engines import ODE_MISSING
+
+    available = registry().available_physics_backends()
+    assert {"mujoco", "pybullet"} <= set(available) <= set(registry().physics_backends)
+    assert ("ode" in available) == (not ODE_MISSING)
+    assert available == [name for name in registry().physics_backends if name in available]

@@ -177,13 +177,14 @@ def _fitted(
             f"{label} is a candidate of {info.name!r}, not of {problem.name!r}: start from "
             f"a run or stored candidate of {problem.name!r}"
         )
-    names = _space_of(info, candidate.params).names
-    space = _space_of(problem, resolve(problem.params, dict(problem_params), problem.name))
+    names = space_of(info, candidate.params).names
+    space = space_of(problem, resolve(problem.params, dict(problem_params), problem.name))
     return fitted_start(label, names, candidate.x, space)
 
 
-def _space_of(info: ProblemInfo, params: Mapping[str, Any]) -> Space:
-    """The search space of ``info``'s problem built with ``params``."""
+def space_of(info: ProblemInfo, params: Mapping[str, Any]) -> Space:
+    """The search space of ``info``'s problem built with ``params`` (cheap: a problem builds
+    its engines on first use), closed again."""
     problem = info.factory(**params)
     try:
         return problem.space

@@ -11,7 +11,7 @@ from typing import Any
 
 import numpy as np
 
-from metaopt.assessment.candidates import check_run_target, stored_candidate_named
+from metaopt.assessment.candidates import check_run_target, space_of, stored_candidate_named
 from metaopt.assessment.recommendation import RECOMMENDED, recommended_point
 from metaopt.errors import ConfigError, StoreError
 from metaopt.executors.base import (
@@ -145,16 +145,6 @@ def replay_params(
             stored = space_of(info, resolve(info.params, run.problem_params, info.name))
         check_space(overrides, stored, space_of(info, params))
     return info, params
-
-
-def space_of(info: ProblemInfo, params: Mapping[str, Any]) -> Space:
-    """The search space of ``info``'s problem built with ``params`` (cheap: a problem builds
-    its engines on first use), closed again."""
-    problem = info.factory(**params)
-    try:
-        return problem.space
-    finally:
-        problem.close()
 
 
 def check_space(changes: Mapping[str, Any], candidate: Space, changed: Space) -> None:

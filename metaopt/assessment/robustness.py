@@ -22,8 +22,8 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from metaopt.assessment.candidates import Candidate
-from metaopt.assessment.replay import check_space, space_of
+from metaopt.assessment.candidates import Candidate, space_of
+from metaopt.assessment.replay import check_space
 from metaopt.errors import ConfigError
 from metaopt.executors.base import EvaluationTask, Executor, Outcome, release_problems
 from metaopt.params import resolve

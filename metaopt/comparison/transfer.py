@@ -49,8 +49,8 @@ def replay_on_other_engines(
     for cell in finished_runs(experiment, store, problem_traits(experiment, plugins)):
         found_on = resolve(info.params, cell.cell.problem_params, info.name)["backend"]
         runs = [r for r in cell.runs if r.best_fitness is not None]
-        for engine, backend in plugins.physics_backends.items():
-            if engine not in engine_names(found_on) and not backend.unavailable:
+        for engine in plugins.available_physics_backends():
+            if engine not in engine_names(found_on):
                 replays = [
                     replay_candidate(run_source(store, r.run.id), plugins, {"backend": engine})
                     for r in runs
