@@ -1,6 +1,7 @@
 import contextlib
 import os
 import sqlite3
+import threading
 import time
 from pathlib import Path
 
@@ -148,7 +149,7 @@ def test_an_owners_heartbeat_is_renewed_and_a_silent_remote_claim_taken_over(tmp
 
         remote = "UPDATE run_owners SET pid = 1, host = 'elsewhere', heartbeat = ?"
         store.claim(run_id)
-        with store._lock:
+        with store._write_lock:
             store._owned.clear()  # this process's flusher no longer renews it
         store._connection.execute(remote, (time.time(),))
         with pytest.raises(StoreError, match="on host elsewhere"):
@@ -298,6 +299,40 @@ def test_the_flusher_outlives_a_locked_store_and_stores_everything_after(tmp_pat
         store.read("SELECT 1")
     holder.rollback()
     holder.close()
+
+
+def test_queuing_an_evaluation_never_waits_on_a_write_to_a_locked_store(tmp_path):
+    """While a flush waits on another connection's write lock (and then fails), queuing goes on
+    at once; the refused rows go back ahead of those queued meanwhile, and once the lock is
+    released a flush stores every evaluation once, in the order it was queued."""
+    path = tmp_path / "busy.db"
+    store = RunStore(path, busy_timeout=1.5)
+    run_id = _new_run(store)
+    holder = _write_lock(path)
+    for i in range(10):
+        store.add_evaluation(run_id, i, i, np.full(1, i), float(i), None, None, i, 0.0)
+    errors: list[BaseException] = []
+
+    def flush_in_background() -> None:
+        try:
+            store.flush()
+        except sqlite3.OperationalError as error:
+            errors.append(error)
+
+    writer = threading.Thread(target=flush_in_background)
+    writer.start()
+    time.sleep(0.2)  # the flush is waiting on the lock
+    started = time.monotonic()
+    for i in range(10, 20):
+        store.add_evaluation(run_id, i, i, np.full(1, i), float(i), None, None, i, 0.0)
+    assert time.monotonic() - started < 0.5  # not the busy timeout
+    writer.join()
+    assert len(errors) == 1 and "locked" in str(errors[0])
+    holder.commit()
+    holder.close()
+    store.flush()
+    assert store.read("SELECT idx FROM evaluations ORDER BY rowid") == [(i,) for i in range(20)]
+    store.close()
 
 
 def test_a_member_run_and_its_membership_are_stored_together_or_not_at_all(tmp_path):

@@ -221,7 +221,10 @@ class RunStore:
             if isinstance(error, sqlite3.DatabaseError):
                 raise StoreError(f"cannot use {self.path} as a run store: {error}") from None
             raise
+        #: Guards the queue only, so that queuing an evaluation never waits on a write.
         self._lock = threading.Lock()
+        #: Serialises the connection's transactions (and guards _owned, changed in them).
+        self._write_lock = threading.Lock()
         self._pending: list[tuple] = []
         self._stop = threading.Event()
         self._flusher: threading.Thread | None = None
@@ -299,7 +302,7 @@ class RunStore:
         versions: dict[str, str],
     ) -> int:
         """Insert a new run with status 'running' and return its id."""
-        with self._lock, self._transaction():
+        with self._write_lock, self._transaction():
             cursor = self._connection.execute(
                 "INSERT INTO runs (optimizer, optimizer_params, problem, problem_params, seed, "
                 "budget, sense, space, settings, versions, started_at, status) "
@@ -380,7 +383,7 @@ class RunStore:
     def claim(self, run_id: int) -> None:
         """Make this process the run's owner, or StoreError naming the live process that owns
         it; a claim whose process died (or, from another host, went silent) is taken over."""
-        with self._lock, self._transaction():
+        with self._write_lock, self._transaction():
             self._connection.execute(_OWNER_SCHEMA)
             row = self._connection.execute(
                 "SELECT pid, host, heartbeat FROM run_owners WHERE run_id = ?", (run_id,)
@@ -396,7 +399,7 @@ class RunStore:
                 "INSERT OR REPLACE INTO run_owners VALUES (?, ?, ?, ?)",
                 (run_id, os.getpid(), HOST, time.time()),
             )
-            # under the lock: the flusher's heartbeat iterates _owned
+            # under the write lock: the flusher's heartbeat iterates _owned
             self._owned.add(run_id)
             self._last_heartbeat = time.time()
         if self._flusher is None:
@@ -406,7 +409,7 @@ class RunStore:
         """Renew this process's claims on the runs it owns (a failed renewal is retried on the
         flusher's next tick)."""
         now = time.time()
-        with self._lock, self._transaction():
+        with self._write_lock, self._transaction():
             self._connection.executemany(
                 "UPDATE run_owners SET heartbeat = ? WHERE run_id = ? AND pid = ? AND host = ?",
                 [(now, run_id, os.getpid(), HOST) for run_id in self._owned],
@@ -414,7 +417,7 @@ class RunStore:
         self._last_heartbeat = now
 
     def _release(self, run_id: int) -> None:
-        """This process no longer runs the run (caller holds the lock, in a transaction)."""
+        """This process no longer runs the run (caller holds the write lock, in a transaction)."""
         if run_id in self._owned:
             self._owned.discard(run_id)
             self._connection.execute(
@@ -426,27 +429,48 @@ class RunStore:
         """Commit queued evaluations now; optionally with a (run_id, checkpoint) in the same
         transaction, so the optimizer state never gets ahead of the stored evaluations. When
         the write fails (locked past the busy timeout, a full disk) the error is raised and
-        the evaluations stay queued, first, for the next flush."""
-        with self._lock:  # nothing is queued meanwhile: the rows stay first in _pending
-            rows = self._pending
+        the evaluations stay queued, first, for the next flush. Evaluations queued while it
+        writes wait for the next flush."""
+        with self._write_lock:  # a flush after this one takes what is queued after these rows
+            rows = self._take_pending()
             if not rows and checkpoint is None:
                 return
-            with self._transaction():
-                self._connection.executemany(
-                    "INSERT OR REPLACE INTO evaluations VALUES (?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?)",
-                    rows,
+            try:
+                self._write(rows, checkpoint)
+            except BaseException:
+                self._requeue(rows)
+                raise
+
+    def _take_pending(self) -> list[tuple]:
+        """Empty the queue and return what it held, oldest first."""
+        with self._lock:
+            rows, self._pending = self._pending, []
+        return rows
+
+    def _requeue(self, rows: list[tuple]) -> None:
+        """Put rows whose write failed back at the front of the queue, ahead of those queued
+        while it was tried, so that they are written in the order they were queued."""
+        with self._lock:
+            self._pending[:0] = rows
+
+    def _write(self, rows: list[tuple], checkpoint: tuple[int, dict] | None) -> None:
+        """Commit evaluation rows and an optional (run_id, checkpoint) in one transaction
+        (caller holds the write lock)."""
+        with self._transaction():
+            self._connection.executemany(
+                "INSERT OR REPLACE INTO evaluations VALUES (?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?)",
+                rows,
+            )
+            if checkpoint is not None:
+                run_id, content = checkpoint
+                self._connection.execute(
+                    "UPDATE runs SET checkpoint = ? WHERE id = ?", (json.dumps(content), run_id)
                 )
-                if checkpoint is not None:
-                    run_id, content = checkpoint
-                    self._connection.execute(
-                        "UPDATE runs SET checkpoint = ? WHERE id = ?", (json.dumps(content), run_id)
-                    )
-            self._pending = []  # committed
 
     def mark_running(self, run_id: int, settings: dict[str, Any], budget: int) -> None:
         """A resumed run is running again, with the settings and budget it resumes with (a new
         max time, a larger budget)."""
-        with self._lock, self._transaction():
+        with self._write_lock, self._transaction():
             self._connection.execute(
                 "UPDATE runs SET status = 'running', ended_at = NULL, message = NULL, "
                 "settings = ?, budget = ? WHERE id = ?",
@@ -462,7 +486,7 @@ class RunStore:
         if status not in RUN_STATUSES:
             raise ValueError(f"unknown run status {status!r}")
         self.flush()
-        with self._lock, self._transaction():
+        with self._write_lock, self._transaction():
             self._connection.execute(
                 "UPDATE runs SET status = ?, ended_at = ?, wall_time = COALESCE(wall_time, 0) + ?, "
                 "message = ? WHERE id = ?",
@@ -480,7 +504,7 @@ class RunStore:
         try:
             self.flush()
             if self._owned:
-                with self._lock, self._transaction():
+                with self._write_lock, self._transaction():
                     for run_id in list(self._owned):
                         self._release(run_id)
         finally:
