@@ -348,3 +348,24 @@ def test_process_workers_shut_down_leave_no_pipe_open():
     executor.shutdown()
     executor.shutdown()
     assert len(pipes) == 4 and all(pipe.closed for pipe in pipes)
+
+
+def _kill_own_process() -> None:
+    """A problem factory whose set-up kills the worker process that runs it."""
+    os.kill(os.getpid(), signal.SIGKILL)
+
+
+def test_a_worker_process_replaced_mid_run_is_closed():
+    """A worker that dies under its task is replaced, and the Process object of the dead one
+    is closed (its resources released), not left for the garbage collector."""
+    executor = registry().executor("process").factory(1, None)
+    try:
+        (first,) = [worker.process for worker in executor._pool]
+        task = EvaluationTask(0, np.zeros(2), 0, _kill_own_process, {})
+        outcome = executor.submit(task).result(timeout=120)
+        assert "died twice" in outcome.error
+        with pytest.raises(ValueError, match="closed"):
+            first.is_alive()
+        assert executor._pool[0].process.is_alive()  # its replacement
+    finally:
+        executor.shutdown()

@@ -74,9 +74,12 @@ class _Worker:
         self.connection.send(job.task)
 
     def kill(self) -> None:
+        """Kill the process (if it still runs), wait for it, then close its pipe and the Process
+        object (its sentinel's descriptor): a worker is replaced, never reused."""
         self.process.kill()
         self.process.join()
         self.connection.close()
+        self.process.close()
 
 
 class ProcessExecutor(Executor):
@@ -178,10 +181,7 @@ class ProcessExecutor(Executor):
                     worker.connection.send(None)
         for worker in self._pool:
             worker.process.join(timeout=2)
-            if worker.process.is_alive():
-                worker.kill()
-            worker.connection.close()  # kill() may have closed it already: closing is idempotent
-            worker.process.close()  # its sentinel's descriptor
+            worker.kill()  # only one still busy is killed; every pipe and process is closed
         for job in self._queue:
             job.future.cancel()
         self._wake_reader.close()
