@@ -29,12 +29,10 @@ from metaopt.problem import Evaluation, Problem, ProblemInfo, Sense
 from metaopt.reporting.convergence import convergence
 from metaopt.running import RunSettings, RunSpec, run
 from metaopt.space import Space, Variable
-from metaopt.storage.run_store import RunStore
+from metaopt.storage.run_store import IN_MEMORY, RunStore
 
 #: What bounds may be: a Space, (lower, upper) pairs, or {variable name: (lower, upper)}.
 Bounds = Space | Sequence[tuple[float, float]] | Mapping[str, tuple[float, float]]
-#: The run store of runs that are not kept (``store=None``).
-IN_MEMORY = ":memory:"
 
 
 @dataclass(frozen=True)

@@ -28,6 +28,13 @@ def test_minimize_finds_the_minimum_and_returns_the_history():
     np.testing.assert_array_equal(again.history.x, history.x)  # same seed, same run
 
 
+def test_a_run_without_a_store_leaves_no_file(tmp_path, monkeypatch):
+    """store=None keeps the run in memory: no file (one named ':memory:' included) is made."""
+    monkeypatch.chdir(tmp_path)
+    assert metaopt.minimize(sphere, [(-5.0, 5.0)] * 2, budget=50, seed=1).run_id is None
+    assert list(tmp_path.iterdir()) == []
+
+
 def test_maximize_any_optimizer_with_named_variables_and_its_parameters():
     bounds = {"width": (0.0, 2.0), "height": (-1.0, 1.0)}
     result = metaopt.maximize(

@@ -224,6 +224,23 @@ def test_an_unwritable_folder_is_refused(sphere_store):
     one_error_line(done, "--output /proc/x.csv: cannot write in /proc")
 
 
+@pytest.mark.parametrize("db", ["file:u.db", "dir[/x.db"])
+def test_a_store_path_names_the_file_it_is_whatever_its_characters(tmp_path, monkeypatch, db):
+    """A --db path that SQLite could read as a URI ('file:...') or that holds what rich markup
+    or a glob give meaning to ('[/') is the file it names: the run stores there and nowhere
+    else, and `runs` reads that file back."""
+    (tmp_path / "dir[").mkdir()
+    done = metaopt_cli(
+        "run", "-o", "random", "-p", "sphere", "--budget", "5", "--db", db, cwd=tmp_path, env=BASIC
+    )  # fmt: skip
+    assert done.returncode == 0, done.stderr
+    assert [p.relative_to(tmp_path).as_posix() for p in tmp_path.rglob("*") if p.is_file()] == [db]
+    monkeypatch.chdir(tmp_path)
+    listed = CliRunner().invoke(main, ["runs", "--format", "json", "--db", db])
+    assert listed.exit_code == 0, listed.output
+    assert [run["id"] for run in json.loads(listed.stdout)] == [1]
+
+
 def test_export_to_a_file_is_whole(sphere_store):
     done = metaopt_cli("export", "1", "--output", "whole.csv", cwd=sphere_store, env=BASIC)
     assert done.returncode == 0, done.stderr

@@ -31,6 +31,8 @@ FLUSH_INTERVAL = 0.5
 #: Seconds a write waits for another connection's write lock before it fails.
 BUSY_TIMEOUT = 30.0
 DEFAULT_DB = "metaopt.db"
+#: A store that lives in memory, for runs that are not kept (SQLite's own name for one).
+IN_MEMORY = ":memory:"
 #: A running run's owner renews its claim this often (seconds) ...
 HEARTBEAT_INTERVAL = 5.0
 #: ... and a claim from another host not renewed for this long is taken as dead.
@@ -184,6 +186,15 @@ def _owner_alive(pid: int, host: str, heartbeat: float) -> bool:
     return True
 
 
+def _database_uri(path: Path) -> str:
+    """The SQLite URI of the file at ``path``, every character of it quoted (IN_MEMORY as it
+    is): SQLite builds that read URIs by default take a plain name starting with 'file:' as one
+    (its '?' and '#' as parts of it) and would open another file."""
+    if str(path) == IN_MEMORY:
+        return IN_MEMORY
+    return path.absolute().as_uri()
+
+
 def _now() -> str:
     return datetime.now(timezone.utc).isoformat(timespec="seconds")
 
@@ -208,7 +219,11 @@ class RunStore:
                     )
         try:
             self._connection = sqlite3.connect(
-                self.path, timeout=busy_timeout, check_same_thread=False, isolation_level=None
+                _database_uri(self.path),
+                timeout=busy_timeout,
+                check_same_thread=False,
+                isolation_level=None,
+                uri=True,
             )
         except sqlite3.DatabaseError as error:
             raise StoreError(f"cannot use {self.path} as a run store: {error}") from None
