@@ -444,29 +444,16 @@ class RunStore:
         """Commit queued evaluations now; optionally with a (run_id, checkpoint) in the same
         transaction, so the optimizer state never gets ahead of the stored evaluations. When
         the write fails (locked past the busy timeout, a full disk) the error is raised and
-        the evaluations stay queued, first, for the next flush. Evaluations queued while it
-        writes wait for the next flush."""
-        with self._write_lock:  # a flush after this one takes what is queued after these rows
-            rows = self._take_pending()
+        the evaluations stay queued, first, for the next flush; rows leave the queue only once
+        committed. Evaluations queued while it writes wait for the next flush."""
+        with self._write_lock:  # one flush at a time: each writes what the last one left
+            with self._lock:
+                rows = list(self._pending)
             if not rows and checkpoint is None:
                 return
-            try:
-                self._write(rows, checkpoint)
-            except BaseException:
-                self._requeue(rows)
-                raise
-
-    def _take_pending(self) -> list[tuple]:
-        """Empty the queue and return what it held, oldest first."""
-        with self._lock:
-            rows, self._pending = self._pending, []
-        return rows
-
-    def _requeue(self, rows: list[tuple]) -> None:
-        """Put rows whose write failed back at the front of the queue, ahead of those queued
-        while it was tried, so that they are written in the order they were queued."""
-        with self._lock:
-            self._pending[:0] = rows
+            self._write(rows, checkpoint)
+            with self._lock:  # committed, so off the queue; a flush interrupted before this
+                del self._pending[: len(rows)]  # writes them again, each replacing itself
 
     def _write(self, rows: list[tuple], checkpoint: tuple[int, dict] | None) -> None:
         """Commit evaluation rows and an optional (run_id, checkpoint) in one transaction
