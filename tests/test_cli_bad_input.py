@@ -22,6 +22,7 @@ from metaopt.cli import main
 from metaopt.errors import ConfigError
 from metaopt.plugins import registry
 from metaopt.scaffold import plugin_names
+from metaopt.storage.run_store import RunStore
 from tests.conftest import metaopt_cli
 
 MAX_INT64 = 2**63 - 1
@@ -469,3 +470,23 @@ def test_start_points_far_past_the_budget_are_refused_by_check(workplace, monkey
         _one_line(CliRunner().invoke(main, [*args, *extra]), "100000000000000 start points",
                   "the 20 candidates the budget evaluates", "at most 1000000")  # fmt: skip
     assert _snapshot(workplace) == before
+
+
+def test_a_run_or_candidate_given_twice_is_refused_not_counted_twice(
+    workplace, monkeypatch, tmp_path
+):
+    """report's bands and robustness's ranking took one run (or candidate) named twice as two
+    independent ones: refused in one line, however the second names it, before any work."""
+    monkeypatch.chdir(workplace)
+    before = _snapshot(workplace)
+    with RunStore(workplace / "metaopt.db") as store:
+        (best,) = store.best_candidates(store.run(1), 1)
+    out = ["--out", str(tmp_path / "figures")]
+    for args, needles in (
+        (["report", "1", "1", *out], ["run 1 is given twice", "each run counts once"]),
+        (["report", "1", "01", *out], ["run 01 is given twice"]),
+        (["robustness", "1", "1"], ["'1' names run 1 again", "each candidate counts once"]),
+        (["robustness", "1", f"1:{best.number}"], [f"'1:{best.number}' names run 1 candidate"]),
+    ):
+        _one_line(CliRunner().invoke(main, args), *needles)
+    assert _snapshot(workplace) == before and not (tmp_path / "figures").exists()
