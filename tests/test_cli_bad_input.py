@@ -490,3 +490,17 @@ def test_a_run_or_candidate_given_twice_is_refused_not_counted_twice(
     ):
         _one_line(CliRunner().invoke(main, args), *needles)
     assert _snapshot(workplace) == before and not (tmp_path / "figures").exists()
+
+
+@pytest.mark.parametrize(("optimizer", "name"), [("ga", "population"), ("random", "batch_size")])
+def test_a_population_or_batch_past_a_million_is_refused_in_one_line(
+    tmp_path, monkeypatch, optimizer, name
+):
+    """As cmaes's population: a generation or batch of 10**7 is a slip that would fill memory
+    (a GA run of budget 5 stored such a first population as its start points and ended in a
+    MemoryError traceback), refused before any run."""
+    monkeypatch.chdir(tmp_path)
+    args = ["run", "-o", optimizer, "-p", "sphere", "--budget", "5", "--set", "dim=2"]
+    result = CliRunner().invoke(main, [*args, "--set", f"{name}=10000000"])
+    _one_line(result, f"'{name}' = 10000000 is invalid", "[", "1e+06]")
+    assert list(tmp_path.iterdir()) == []
