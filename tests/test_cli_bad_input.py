@@ -504,3 +504,26 @@ def test_a_population_or_batch_past_a_million_is_refused_in_one_line(
     result = CliRunner().invoke(main, [*args, "--set", f"{name}=10000000"])
     _one_line(result, f"'{name}' = 10000000 is invalid", "[", "1e+06]")
     assert list(tmp_path.iterdir()) == []
+
+
+@pytest.mark.parametrize(
+    ("args", "needles"),
+    [
+        (["--backend", "ode", "--set", "backend=pybullet"],
+         ["--backend ode and --set backend=pybullet both choose the engine",
+          "give one of --backend or --set backend"]),
+        (["--set", "p.backend=bullet", "--backend", "bullet"],
+         ["--backend bullet and --set backend=bullet both choose the engine"]),
+        # alone, either is the engine, unwarned: here an unknown one, refused before any episode
+        (["--backend", "bullet"], ["unknown physics backend 'bullet'"]),
+        (["--set", "backend=bullet"], ["unknown physics backend 'bullet'"]),
+    ],
+)  # fmt: skip
+def test_replay_takes_the_engine_from_backend_or_set_backend_not_both(
+    tmp_path, monkeypatch, args, needles
+):
+    """replay turned --backend into one more --set backend: given both, it warned of a setting
+    given twice and replayed on --backend's engine; now one line, before any episode."""
+    monkeypatch.chdir(tmp_path)
+    _one_line(CliRunner().invoke(main, ["replay", "hs_walk", *args]), *needles)
+    assert list(tmp_path.iterdir()) == []
