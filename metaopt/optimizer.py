@@ -93,6 +93,11 @@ def restore_rng(rng: np.random.Generator, state: dict[str, Any]) -> None:
     rng.bit_generator.state = state
 
 
+#: The most candidates a population or batch parameter takes: an optimizer's arrays are that
+#: long, and a larger one is a slip that would fill memory.
+MAX_POPULATION = 1_000_000
+
+
 def budget_param(default: int = 10000) -> Param:
     """The ``budget`` parameter every optimizer declares: how many evaluations it will be told.
 

@@ -4,8 +4,10 @@ from __future__ import annotations
 
 import difflib
 import math
+import sys
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
+from decimal import Decimal, InvalidOperation
 from typing import Any
 
 from metaopt.errors import ConfigError
@@ -13,6 +15,8 @@ from metaopt.errors import ConfigError
 _TYPES: dict[type, str] = {int: "int", float: "float", str: "str", bool: "bool"}
 _TRUE = {"1", "true", "yes", "on"}
 _FALSE = {"0", "false", "no", "off"}
+#: the largest float: a whole number written with a fraction or an exponent is read up to it
+_FLOAT_MAX = Decimal(sys.float_info.max)
 
 
 @dataclass(frozen=True)
@@ -78,10 +82,7 @@ class Param:
                     raise ValueError
                 value: Any = lowered in _TRUE
             elif self.type is int:
-                as_float = float(text)
-                if not as_float.is_integer():
-                    raise ValueError
-                value = int(as_float)
+                value = _exact_int(text)
             else:
                 value = self.type(text)
         except ValueError:
@@ -113,6 +114,22 @@ class Param:
             ):
                 raise bad
         return value
+
+
+def _exact_int(text: str) -> int:
+    """``text`` as an int, exactly (read through a float, 2**53 + 1 became 2**53): its digits,
+    or a whole number written as a float ('1e3', '10.0') within float range; else ValueError."""
+    try:
+        return int(text)
+    except ValueError:
+        pass
+    try:
+        number = Decimal(text)
+    except InvalidOperation:
+        raise ValueError from None
+    if not number.is_finite() or abs(number) > _FLOAT_MAX or number != number.to_integral_value():
+        raise ValueError
+    return int(number)
 
 
 def _fmt(number: float) -> str:

@@ -43,6 +43,7 @@ from metaopt import (
     restore_rng,
     rng_state,
 )
+from metaopt.optimizer import MAX_POPULATION
 from metaopt.space import repair_param
 
 
@@ -242,10 +243,10 @@ PARAMS = (
         int,
         0,
         "lambda, candidates per generation (0: 4 + floor(3 ln n): 10 for the paper's 10 CPG "
-        "parameters, 12 for nao-walk's steered controller's 15); at most 1,000,000: a "
-        "generation's arrays are this long, and a larger one is a slip that would fill memory",
+        f"parameters, 12 for nao-walk's steered controller's 15); at most {MAX_POPULATION:,}: "
+        "a generation's arrays are this long, and a larger one is a slip that would fill memory",
         low=0,
-        high=1_000_000,
+        high=MAX_POPULATION,
     ),
     Param(
         "sigma0",

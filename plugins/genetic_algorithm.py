@@ -36,6 +36,7 @@ from metaopt import (
     restore_rng,
     rng_state,
 )
+from metaopt.optimizer import MAX_POPULATION
 from metaopt.space import repair_param
 
 Crossover = Callable[[np.ndarray, np.ndarray, np.random.Generator], tuple[np.ndarray, np.ndarray]]
@@ -325,7 +326,14 @@ class GeneticAlgorithm(Optimizer):
 
 
 PARAMS = (
-    Param("population", int, 100, "candidates per generation", low=2),
+    Param(
+        "population",
+        int,
+        100,
+        f"candidates per generation; at most {MAX_POPULATION:,} (more would fill memory)",
+        low=2,
+        high=MAX_POPULATION,
+    ),
     Param("elites", int, 2, "best members passed unchanged to the next generation", low=0),
     Param("tournament", int, 2, "tournament size k of parent selection", low=1),
     Param("crossover", str, "sbx", "crossover operator", choices=("sbx", "blx")),

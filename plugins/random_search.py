@@ -16,6 +16,7 @@ from metaopt import (
     restore_rng,
     rng_state,
 )
+from metaopt.optimizer import MAX_POPULATION
 
 
 class RandomSearch(Optimizer):
@@ -59,7 +60,15 @@ def metaopt_optimizers() -> list[OptimizerInfo]:
             summary="Uniform random sampling inside the bounds (baseline)",
             factory=RandomSearch,
             params=(
-                Param("batch_size", int, 100, "candidates asked for at once", low=1),
+                Param(
+                    "batch_size",
+                    int,
+                    100,
+                    f"candidates asked for at once; at most {MAX_POPULATION:,} (more would fill "
+                    "memory)",
+                    low=1,
+                    high=MAX_POPULATION,
+                ),
                 budget_param(),
             ),
             description=__doc__,

@@ -22,6 +22,7 @@ from metaopt.cli import main
 from metaopt.errors import ConfigError
 from metaopt.plugins import registry
 from metaopt.scaffold import plugin_names
+from metaopt.storage.run_store import RunStore
 from tests.conftest import metaopt_cli
 
 MAX_INT64 = 2**63 - 1
@@ -469,3 +470,60 @@ def test_start_points_far_past_the_budget_are_refused_by_check(workplace, monkey
         _one_line(CliRunner().invoke(main, [*args, *extra]), "100000000000000 start points",
                   "the 20 candidates the budget evaluates", "at most 1000000")  # fmt: skip
     assert _snapshot(workplace) == before
+
+
+def test_a_run_or_candidate_given_twice_is_refused_not_counted_twice(
+    workplace, monkeypatch, tmp_path
+):
+    """report's bands and robustness's ranking took one run (or candidate) named twice as two
+    independent ones: refused in one line, however the second names it, before any work."""
+    monkeypatch.chdir(workplace)
+    before = _snapshot(workplace)
+    with RunStore(workplace / "metaopt.db") as store:
+        (best,) = store.best_candidates(store.run(1), 1)
+    out = ["--out", str(tmp_path / "figures")]
+    for args, needles in (
+        (["report", "1", "1", *out], ["run 1 is given twice", "each run counts once"]),
+        (["report", "1", "01", *out], ["run 01 is given twice"]),
+        (["robustness", "1", "1"], ["'1' names run 1 again", "each candidate counts once"]),
+        (["robustness", "1", f"1:{best.number}"], [f"'1:{best.number}' names run 1 candidate"]),
+    ):
+        _one_line(CliRunner().invoke(main, args), *needles)
+    assert _snapshot(workplace) == before and not (tmp_path / "figures").exists()
+
+
+@pytest.mark.parametrize(("optimizer", "name"), [("ga", "population"), ("random", "batch_size")])
+def test_a_population_or_batch_past_a_million_is_refused_in_one_line(
+    tmp_path, monkeypatch, optimizer, name
+):
+    """As cmaes's population: a generation or batch of 10**7 is a slip that would fill memory
+    (a GA run of budget 5 stored such a first population as its start points and ended in a
+    MemoryError traceback), refused before any run."""
+    monkeypatch.chdir(tmp_path)
+    args = ["run", "-o", optimizer, "-p", "sphere", "--budget", "5", "--set", "dim=2"]
+    result = CliRunner().invoke(main, [*args, "--set", f"{name}=10000000"])
+    _one_line(result, f"'{name}' = 10000000 is invalid", "[", "1e+06]")
+    assert list(tmp_path.iterdir()) == []
+
+
+@pytest.mark.parametrize(
+    ("args", "needles"),
+    [
+        (["--backend", "ode", "--set", "backend=pybullet"],
+         ["--backend ode and --set backend=pybullet both choose the engine",
+          "give one of --backend or --set backend"]),
+        (["--set", "p.backend=bullet", "--backend", "bullet"],
+         ["--backend bullet and --set backend=bullet both choose the engine"]),
+        # alone, either is the engine, unwarned: here an unknown one, refused before any episode
+        (["--backend", "bullet"], ["unknown physics backend 'bullet'"]),
+        (["--set", "backend=bullet"], ["unknown physics backend 'bullet'"]),
+    ],
+)  # fmt: skip
+def test_replay_takes_the_engine_from_backend_or_set_backend_not_both(
+    tmp_path, monkeypatch, args, needles
+):
+    """replay turned --backend into one more --set backend: given both, it warned of a setting
+    given twice and replayed on --backend's engine; now one line, before any episode."""
+    monkeypatch.chdir(tmp_path)
+    _one_line(CliRunner().invoke(main, ["replay", "hs_walk", *args]), *needles)
+    assert list(tmp_path.iterdir()) == []

@@ -18,6 +18,29 @@ def test_parse_converts_and_validates_each_type():
 
 
 @pytest.mark.parametrize(
+    ("text", "expected"),
+    [
+        ("9007199254740993", 2**53 + 1),
+        ("9007199254740993.0", 2**53 + 1),
+        ("9223372036854775807", 2**63 - 1),
+        ("1e3", 1000),
+        (" 10.0 ", 10),
+        ("1.5e1", 15),
+    ],
+)
+def test_an_int_is_read_exactly_past_a_floats_precision(text, expected):
+    """Read through a float, 2**53 + 1 became 2**53; a whole number written as a float is
+    still one."""
+    assert SIZE.parse(text, "hs") == expected
+
+
+@pytest.mark.parametrize("text", ["1.0000000000000001", "9007199254740993.5", "1e400", "nan"])
+def test_an_int_that_a_float_would_round_or_overflow_is_refused(text):
+    with pytest.raises(ConfigError, match=rf"cannot read '{text}'; expected an int in \[1, inf\)"):
+        SIZE.parse(text, "hs")
+
+
+@pytest.mark.parametrize(
     ("param", "text", "expected"),
     [
         (RATE, "1.5", r"'hmcr' = 1.5 is invalid; expected a float in \[0, 1\]"),

@@ -59,6 +59,9 @@ def test_a_cmaes_run_recommends_its_last_mean_which_it_never_evaluated(runs: Pat
     (candidate,), info = find_candidates("1:recommended", registry().problems, db, 3)
     assert info.name == "sphere" and candidate.label == "run 1 recommended"
     assert candidate.target == "1:recommended" and np.array_equal(candidate.x, expected)
+    # named as the run's id reads, so that robustness knows '01:recommended' for the same one
+    (again,), _ = find_candidates("01:recommended", registry().problems, db, 1)
+    assert again.target == "1:recommended"
 
 
 def test_replay_and_start_from_take_a_recommendation(runs: Path) -> None:

@@ -81,7 +81,8 @@ def find_candidates(
     params = resolve(info.params, run.problem_params, info.name)
     if number == RECOMMENDED:
         point = recommended_point(run)
-        return [Candidate(f"run {run.id} recommended", info.name, params, point, target)], info
+        named = f"{run.id}:{RECOMMENDED}"  # as the run's other candidates: '01' names run 1
+        return [Candidate(f"run {run.id} recommended", info.name, params, point, named)], info
     best_alone = top == 1 and last is None and not number
     return [
         Candidate(

@@ -35,8 +35,9 @@ from metaopt.cli.robustness import (
     robustness_rank_command,
     robustness_summary_command,
 )
-from metaopt.errors import MetaoptError, SettingWarning
+from metaopt.errors import ConfigError, MetaoptError, SettingWarning
 from metaopt.plugins import registry
+from metaopt.problem import ProblemInfo
 from metaopt.reporting import display
 from metaopt.reporting.convergence import require_evaluations
 from metaopt.reporting.history import run_history
@@ -536,7 +537,9 @@ def export_command(run_id: str, fmt: str, output: Path | None, db_path: str) -> 
 
 @main.command("replay")
 @click.argument("target", metavar="RUN[:CANDIDATE|:recommended]|NAME")
-@click.option("--backend", default=None, help="Physics engine to replay on [the run's own].")
+@click.option("--backend", default=None,
+              help="Physics engine to replay on, as --set backend=NAME does (give one) [the "
+                   "run's own].")  # fmt: skip
 @click.option("--set", "settings", multiple=True, metavar="NAME=VALUE",
               help="Change a problem parameter for the replay.")  # fmt: skip
 @output_file_option("--video", "video", "Also film the candidate into this MP4 file.", ".mp4")
@@ -559,8 +562,7 @@ def replay_command(
     plugins = registry()
     source = find_source(target, plugins, db_path)
     problem_info = plugins.problem(source.problem)
-    pairs = [*settings, *([f"backend={backend}"] if backend is not None else [])]
-    overrides = parse_problem_settings(pairs, problem_info)
+    overrides = _replay_overrides(settings, backend, problem_info)
     if seeds is not None:
         with build_executor(executor, workers, scheduler) as pool:
             over_seeds = replay_seeds(source, plugins, overrides, seeds, seed, pool)
@@ -576,6 +578,23 @@ def replay_command(
             sys.exit(1)
     if video is not None:
         write_replay_video(source, overrides, video)
+
+
+def _replay_overrides(
+    settings: tuple[str, ...], backend: str | None, problem_info: ProblemInfo
+) -> dict[str, Any]:
+    """The problem parameters a replay changes: its --set pairs, and --backend as one more
+    way to set ``backend``. Both at once is refused: two values, and neither surely the one
+    meant."""
+    overrides = parse_problem_settings(settings, problem_info)
+    if backend is not None:
+        if "backend" in overrides:
+            raise ConfigError(
+                f"--backend {backend} and --set backend={overrides['backend']} both choose the "
+                "engine; give one of --backend or --set backend"
+            )
+        overrides |= parse_problem_settings([f"backend={backend}"], problem_info)
+    return overrides
 
 
 main.add_command(new)

@@ -5,10 +5,8 @@ metaopt.assessment.robustness)."""
 from __future__ import annotations
 
 import warnings
-from collections.abc import Callable, Hashable, Sequence
 from dataclasses import replace
 from pathlib import Path
-from typing import Any
 
 import click
 from rich.markup import escape
@@ -20,6 +18,7 @@ from metaopt.cli.common import (
     build_executor,
     console,
     db_option,
+    once_each,
     scheduling_options,
 )
 from metaopt.cli.compare import MAX_SEEDS
@@ -128,7 +127,7 @@ def robustness_command(
     robustness.check_space_kept(candidates, changes, info)
     candidates = [replace(c, params={**c.params, **changes}) for c in candidates]
     names = engine_names(engines) if engines is not None else tuple(plugins.physics_backends)
-    _once_each(names, lambda name: f"--engines names {name} twice; name each engine once")
+    once_each(names, lambda name: f"--engines names {name} twice; name each engine once")
     for name in names:
         plugins.physics_backend(name)  # ConfigError listing the installed ones
     table = robustness.select_cells(
@@ -203,7 +202,8 @@ def robustness_command(
 def _candidates(
     targets: tuple[str, ...], top: int, last: int | None, problems: dict, db_path: str
 ) -> tuple[list[Candidate], ProblemInfo]:
-    """Every target's candidates, all of one problem (a ranking compares like with like)."""
+    """Every target's candidates, all of one problem (a ranking compares like with like), each
+    once (``1 1``, or ``1`` and ``1:N`` of its best, would rank one candidate twice)."""
     found = [find_candidates(target, problems, db_path, top, last) for target in targets]
     info = found[0][1]
     for target, (_, other) in zip(targets, found, strict=True):
@@ -212,18 +212,19 @@ def _candidates(
                 f"{target!r} is a candidate of {other.name!r}, {targets[0]!r} of "
                 f"{info.name!r}: rank candidates of one problem"
             )
-    return [c for candidates, _ in found for c in candidates], info
+    named = [(t, c) for t, (candidates, _) in zip(targets, found, strict=True) for c in candidates]
+    once_each(named, _named_again, key=lambda pair: pair[1].target)
+    return [candidate for _, candidate in named], info
 
 
-def _once_each(items: Sequence[Hashable], refusal: Callable[[Any], str]) -> None:
-    """ConfigError with ``refusal(item)`` for the first item given twice (a file by where it
-    resolves to): counted twice, it would pass for two independent samples."""
-    seen: set[Hashable] = set()
-    for item in items:
-        key = item.resolve() if isinstance(item, Path) else item
-        if key in seen:
-            raise ConfigError(refusal(item))
-        seen.add(key)
+def _named_again(pair: tuple[str, Candidate]) -> str:
+    """The refusal of a target naming a candidate an earlier target names (the same target
+    again, or ``1:N`` after ``1`` whose best is N)."""
+    target, candidate = pair
+    return (
+        f"{target!r} names {candidate.label} again; each candidate counts once in the ranking, "
+        "so name each once"
+    )
 
 
 #: what a refusal of a file given twice accepts
@@ -317,8 +318,8 @@ def robustness_summary_command(
     per engine and their median and standard deviation over the searches, against the
     goals. A search is one chaotic trajectory: a design is judged by medians over its seeds,
     and two designs run on the same seeds by their paired differences (--against)."""
-    _once_each(csv_paths, _given_twice)
-    _once_each(against_paths, lambda path: f"--against {path} is given twice; {_EACH_ONCE}")
+    once_each(csv_paths, _given_twice)
+    once_each(against_paths, lambda path: f"--against {path} is given twice; {_EACH_ONCE}")
     tables = [search_medians.read_table(path) for path in csv_paths]
     baselines = [search_medians.read_table(path) for path in against_paths]
     compared, goals = _alike_with_goals([*tables, *baselines], goal_texts)
@@ -367,7 +368,7 @@ def robustness_rank_command(
     against other goals, from the files alone: by their smallest margin to a goal on any
     engine, as robustness --goal ranks, without evaluating anything. Equal margins keep the
     files' order."""
-    _once_each(csv_paths, _given_twice)
+    once_each(csv_paths, _given_twice)
     tables = [table for path in csv_paths for table in search_medians.read_tables(path)]
     tables, goals = _alike_with_goals(tables, goal_texts)
     ranked = goal_ranking.rank_by_goals(tables, goals)
