@@ -369,3 +369,36 @@ def test_a_worker_process_replaced_mid_run_is_closed():
         assert executor._pool[0].process.is_alive()  # its replacement
     finally:
         executor.shutdown()
+
+
+def _note_then_kill_own_process(path: str) -> None:
+    """A problem factory that notes one try in the file at path, then kills its worker."""
+    with open(path, "a") as tries:
+        tries.write("try\n")
+    os.kill(os.getpid(), signal.SIGKILL)
+
+
+def test_a_worker_that_died_idle_is_replaced_when_given_a_task(tmp_path):
+    """A worker killed while idle (kill -9, the OOM killer) is replaced when it is given a
+    task, which goes to a live worker with its attempt unspent (a task that kills its worker
+    still gets its two tries), and the pool serves on: nothing waits for ever."""
+    executor = registry().executor("process").factory(1, None)
+    try:
+        (warm_up,) = _sphere_tasks(1, time_limit=None)
+        assert executor.submit(warm_up).result(timeout=120).error is None
+        (idle,) = [worker.process for worker in executor._pool]
+        os.kill(idle.pid, signal.SIGKILL)
+        os.waitid(os.P_PID, idle.pid, os.WEXITED | os.WNOWAIT)  # gone, not yet reaped
+        tries = tmp_path / "tries"
+        deadly = EvaluationTask(
+            9, np.zeros(2), 0, _note_then_kill_own_process, {"path": str(tries)}
+        )
+        tasks = [deadly, *_sphere_tasks(3, time_limit=None)]
+        futures = [executor.submit(task) for task in tasks]
+        outcomes = [future.result(timeout=60) for future in futures]
+        assert "died twice" in outcomes[0].error and tries.read_text().count("try") == 2
+        assert [outcome.error for outcome in outcomes[1:]] == [None, None, None]
+        with pytest.raises(ValueError, match="closed"):
+            idle.is_alive()  # the dead worker was replaced, its Process closed
+    finally:
+        executor.shutdown()

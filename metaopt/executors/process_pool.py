@@ -1,8 +1,10 @@
 """Local worker processes that survive their workers: a dead worker's task is retried once on a
-fresh process and then failed with the reason; a task past its time limit is stopped by killing
-its worker, and a worker whose task its own alarm stopped is replaced too (the stop may have
-cut an import short). The limit counts from the end of the problem's set-up, which the worker
-reports. Each worker runs one task at a time, so a death is always traced to its task."""
+fresh process and then failed with the reason, and a worker found dead when given a task (it
+died idle) is replaced, the task going to the next free one untried; a task past its time limit
+is stopped by killing its worker, and a worker whose task its own alarm stopped is replaced too
+(the stop may have cut an import short). The limit counts from the end of the problem's set-up,
+which the worker reports. Each worker runs one task at a time, so a death is always traced to
+its task."""
 
 from __future__ import annotations
 
@@ -70,8 +72,10 @@ class _Worker:
         self.started: float | None = None
 
     def start(self, job: _Job) -> None:
-        self.job, self.started = job, None
+        """Send the job's task; the job is this worker's only once sent, so a send that fails
+        (OSError: the pipe broke, the process died idle) leaves the worker without it."""
         self.connection.send(job.task)
+        self.job, self.started = job, None
 
     def kill(self) -> None:
         """Kill the process (if it still runs), wait for it, then close its pipe and the Process
@@ -121,10 +125,26 @@ class ProcessExecutor(Executor):
                     self._enforce_time_limit(worker)
 
     def _assign(self) -> None:
+        """Give each idle worker the next waiting job."""
+        for worker in list(self._pool):
+            if worker.job is None and (job := self._next_job()) is not None:
+                self._start(worker, job)
+
+    def _next_job(self) -> _Job | None:
+        """Take the job first in line off the queue (None when none waits)."""
         with self._lock:
-            for worker in self._pool:
-                if worker.job is None and self._queue:
-                    worker.start(self._queue.popleft())
+            return self._queue.popleft() if self._queue else None
+
+    def _start(self, worker: _Worker, job: _Job) -> None:
+        """Hand the job to an idle worker. One whose pipe is broken (it died idle: killed from
+        outside, the OOM killer) is replaced as one that died under its task, and the job,
+        which it never ran, goes back first in line with its attempt unspent."""
+        try:
+            worker.start(job)
+        except OSError:
+            self._replace_dead(worker)
+            with self._lock:
+                self._queue.appendleft(job)
 
     def _collect(self, worker: _Worker) -> None:
         try:
