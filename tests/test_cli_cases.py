@@ -9,6 +9,7 @@ import io
 import json
 import multiprocessing
 import os
+import shlex
 import signal
 import sqlite3
 import statistics
@@ -23,6 +24,7 @@ from click.testing import CliRunner
 
 from metaopt.cli import main
 from metaopt.storage.export import dump_json
+from metaopt_problems.functions import BenchmarkFunction
 from tests.conftest import metaopt_cli, one_error_line
 from tests.engines import needs_ode
 
@@ -239,6 +241,27 @@ def test_a_store_path_names_the_file_it_is_whatever_its_characters(tmp_path, mon
     listed = CliRunner().invoke(main, ["runs", "--format", "json", "--db", db])
     assert listed.exit_code == 0, listed.output
     assert [run["id"] for run in json.loads(listed.stdout)] == [1]
+
+
+def _interrupt(self, x, seed):
+    """An evaluation that Ctrl-C stops."""
+    raise KeyboardInterrupt
+
+
+@pytest.mark.parametrize("name", ["my runs.db", "it's $HOME;.db"])
+def test_the_resume_hint_of_an_interrupted_run_pastes_back_into_a_shell(
+    tmp_path, monkeypatch, name
+):
+    """The line after an interrupted run quotes its store path for a shell: a path with a
+    space or shell characters, split as a shell does, names the store again."""
+    monkeypatch.setattr(BenchmarkFunction, "evaluate", _interrupt)
+    db = str(tmp_path / name)
+    args = ["run", "-o", "random", "-p", "sphere", "--budget", "5", "--db", db]
+    done = CliRunner().invoke(main, args)
+    assert done.exit_code == 130, (done.output, done.exception)
+    (hint,) = [line for line in done.stderr.splitlines() if "Resume with: " in line]
+    command = hint.partition("Resume with: ")[2]
+    assert shlex.split(command) == ["metaopt", "resume", "1", "--db", db]
 
 
 def test_export_to_a_file_is_whole(sphere_store):

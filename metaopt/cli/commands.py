@@ -4,6 +4,7 @@ report, new."""
 from __future__ import annotations
 
 import secrets
+import shlex
 import sys
 import warnings
 from pathlib import Path
@@ -396,14 +397,15 @@ def resume_command(
 
 
 def _with_progress(label: str, db_path: str, start) -> RunResult:
-    """Run with a progress bar; Ctrl-C/SIGTERM ends with one line on how to resume."""
+    """Run with a progress bar; Ctrl-C/SIGTERM ends with one line on how to resume, its
+    command quoted for a shell (a store path with a space or a shell character pastes back)."""
     try:
         with display.RichProgress(console, label) as progress:
             return start(progress)
     except RunInterrupted as stop:
         errors.print(
             f"Interrupted: run {stop.run_id} stopped with {stop.stored} evaluations stored in "
-            f"{db_path}. Resume with: metaopt resume {stop.run_id} --db {db_path}",
+            f"{db_path}. Resume with: metaopt resume {stop.run_id} --db {shlex.quote(db_path)}",
             markup=False,  # a path is no rich markup
         )
         sys.exit(130)
