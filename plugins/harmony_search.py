@@ -59,6 +59,7 @@ from metaopt import (
     restore_rng,
     rng_state,
 )
+from metaopt.optimizer import MAX_POPULATION
 from metaopt.space import repair_param
 
 PITCH_ADJUSTMENTS = ("bandwidth", "resample", "ihs", "ghs")
@@ -430,7 +431,13 @@ class HarmonySearch(Optimizer):
 
 PARAMS = (
     Param(
-        "hms", int, 20, "harmony memory size: how many solutions are kept (10-30 is usual)", low=1
+        "hms",
+        int,
+        20,
+        "harmony memory size: how many solutions are kept (10-30 is usual); at most "
+        f"{MAX_POPULATION:,} (more would fill memory)",
+        low=1,
+        high=MAX_POPULATION,
     ),
     Param(
         "hmcr",

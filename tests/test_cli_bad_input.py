@@ -492,18 +492,36 @@ def test_a_run_or_candidate_given_twice_is_refused_not_counted_twice(
     assert _snapshot(workplace) == before and not (tmp_path / "figures").exists()
 
 
-@pytest.mark.parametrize(("optimizer", "name"), [("ga", "population"), ("random", "batch_size")])
+@pytest.mark.parametrize(
+    ("optimizer", "name"), [("ga", "population"), ("random", "batch_size"), ("hs", "hms")]
+)
 def test_a_population_or_batch_past_a_million_is_refused_in_one_line(
     tmp_path, monkeypatch, optimizer, name
 ):
-    """As cmaes's population: a generation or batch of 10**7 is a slip that would fill memory
-    (a GA run of budget 5 stored such a first population as its start points and ended in a
-    MemoryError traceback), refused before any run."""
+    """As cmaes's population: a generation, batch or harmony memory of 10**7 is a slip that
+    would fill memory (a GA run of budget 5 stored such a first population as its start points
+    and ended in a MemoryError traceback), refused before any run."""
     monkeypatch.chdir(tmp_path)
     args = ["run", "-o", optimizer, "-p", "sphere", "--budget", "5", "--set", "dim=2"]
     result = CliRunner().invoke(main, [*args, "--set", f"{name}=10000000"])
     _one_line(result, f"'{name}' = 10000000 is invalid", "[", "1e+06]")
     assert list(tmp_path.iterdir()) == []
+
+
+def test_a_sync_batch_past_a_million_is_refused_in_one_line(tmp_path, monkeypatch):
+    """As the optimizers' populations: --batch 10**7, or batch = 10**7 in an experiment's run
+    settings, is a slip that would fill memory, refused before any run."""
+    monkeypatch.chdir(tmp_path)
+    result = CliRunner().invoke(main, [*RUN_BASE, "--batch", "10000000"])
+    _one_line(result, "'--batch'", "10000000 is not in the range 0<=x<=1000000")
+    assert list(tmp_path.iterdir()) == []
+    (tmp_path / "batch.toml").write_text(
+        'name = "b"\nproblem = "sphere"\nseeds = 1\nbudget = 5\n'
+        '[[optimizers]]\nname = "random"\nsettings = { batch = 10000000 }\n'
+    )
+    result = CliRunner().invoke(main, ["compare", "batch.toml"])
+    _one_line(result, "batch.toml", "batch must be 0 (the optimizer's own) to 1,000,000")
+    assert [path.name for path in tmp_path.iterdir()] == ["batch.toml"]
 
 
 @pytest.mark.parametrize(

@@ -37,6 +37,7 @@ from metaopt.cli.robustness import (
     robustness_summary_command,
 )
 from metaopt.errors import ConfigError, MetaoptError, SettingWarning
+from metaopt.optimizer import MAX_POPULATION
 from metaopt.plugins import registry
 from metaopt.problem import ProblemInfo
 from metaopt.reporting import display
@@ -187,9 +188,10 @@ def list_plugins(name: str | None) -> None:
 )
 @click.option(
     "--batch",
-    type=click.IntRange(min=0),
+    type=click.IntRange(min=0, max=MAX_POPULATION),
     default=0,
-    help="sync: candidates per batch [the optimizer's own; e.g. 1 for hs].",
+    help="sync: candidates per batch [the optimizer's own; e.g. 1 for hs]; at most "
+    f"{MAX_POPULATION:,} (more would fill memory).",
 )
 @click.option(
     "--resample",

@@ -10,7 +10,7 @@ from typing import Any, Protocol
 import numpy as np
 
 from metaopt.errors import ConfigError
-from metaopt.optimizer import Optimizer
+from metaopt.optimizer import MAX_POPULATION, Optimizer
 from metaopt.resampling import AGGREGATES
 
 MODES = ("sync", "async")
@@ -97,8 +97,11 @@ class RunSettings:
             raise ConfigError(f"unknown mode {self.mode!r}; accepted: {', '.join(MODES)}")
         if self.aggregate not in AGGREGATES:
             raise ConfigError(f"unknown aggregate {self.aggregate!r}; accepted: mean, median")
-        if self.batch < 0:
-            raise ConfigError(f"batch must be 0 (the optimizer's own) or more, got {self.batch}")
+        if not 0 <= self.batch <= MAX_POPULATION:
+            raise ConfigError(
+                f"batch must be 0 (the optimizer's own) to {MAX_POPULATION:,} (more would fill "
+                f"memory), got {self.batch}"
+            )
         if self.resample < 1:
             raise ConfigError(f"resample must be at least 1, got {self.resample}")
         if self.common_seeds not in COMMON_SEEDS:
