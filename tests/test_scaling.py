@@ -2,7 +2,9 @@
 
 from __future__ import annotations
 
+import concurrent.futures
 import os
+import resource
 import signal
 import sqlite3
 import subprocess
@@ -11,6 +13,7 @@ import threading
 import time
 import urllib.request
 import warnings
+from multiprocessing import resource_tracker
 from pathlib import Path
 
 import numpy as np
@@ -402,3 +405,68 @@ def test_a_worker_that_died_idle_is_replaced_when_given_a_task(tmp_path):
             idle.is_alive()  # the dead worker was replaced, its Process closed
     finally:
         executor.shutdown()
+
+
+class _RefusesPickling:
+    """A problem parameter that cannot be sent to a worker process."""
+
+    def __reduce__(self) -> tuple:
+        raise TypeError("a _RefusesPickling refuses to be pickled")
+
+
+def test_a_task_that_does_not_pickle_fails_alone_and_the_pool_serves_on():
+    """A task that cannot be sent to a worker (a lambda in it, an object refusing to pickle)
+    fails at once with the reason, and the same worker, its pipe intact, serves the rest."""
+    executor = registry().executor("process").factory(1, None)
+    try:
+        (worker,) = [worker.process for worker in executor._pool]
+        sphere = registry().problem("sphere").factory
+        local = EvaluationTask(7, np.zeros(2), 0, lambda **params: sphere(**params), {})
+        refusing = EvaluationTask(8, np.zeros(2), 0, sphere, {"dim": _RefusesPickling()})
+        tasks = [local, refusing, *_sphere_tasks(3, time_limit=None)]
+        outcomes = [executor.submit(task).result(timeout=60) for task in tasks]
+        assert "cannot be sent to a worker process" in outcomes[0].error
+        assert "local object" in outcomes[0].error and "<lambda>" in outcomes[0].error
+        assert "refuses to be pickled" in outcomes[1].error
+        assert [outcome.error for outcome in outcomes[2:]] == [None, None, None]
+        assert executor._pool[0].process is worker and worker.is_alive()  # never replaced
+    finally:
+        executor.shutdown()
+
+
+def test_a_replacement_worker_that_cannot_start_fails_every_task_instead_of_hanging():
+    """No file descriptor left when a dead worker is replaced: every task waiting or running
+    fails at once with BrokenExecutor naming the error, and so do later submits (the error
+    ended the manager thread and left them waiting for ever); shutdown still stops every
+    worker, and no descriptor is left open, nor the pipe of the worker that could not start."""
+    resource_tracker.ensure_running()  # the first spawned process starts it, open for good
+    descriptors = len(os.listdir("/dev/fd"))
+    executor = registry().executor("process").factory(2, None)
+    processes = [worker.process for worker in executor._pool]
+    try:
+        warm_up = _sphere_tasks(2, time_limit=None)
+        assert all(executor.submit(t).result(timeout=120).error is None for t in warm_up)
+        deadly = EvaluationTask(9, np.zeros(2), 0, _kill_own_process, {})
+        soft, hard = resource.getrlimit(resource.RLIMIT_NOFILE)
+        lowest_free = os.open(os.devnull, os.O_RDONLY)
+        os.close(lowest_free)
+        resource.setrlimit(resource.RLIMIT_NOFILE, (lowest_free, hard))  # no new descriptor
+        try:
+            futures = [executor.submit(t) for t in [deadly, *_sphere_tasks(3, time_limit=None)]]
+            _, waiting = concurrent.futures.wait(futures, timeout=30)
+        finally:
+            resource.setrlimit(resource.RLIMIT_NOFILE, (soft, hard))
+        assert not waiting
+        broken = "the process pool stopped: its manager thread failed with OSError"
+        with pytest.raises(concurrent.futures.BrokenExecutor, match=broken):
+            futures[0].result()
+        for future in futures[1:]:  # finished before the failure, or failed by it
+            assert future.exception() is None or broken in str(future.exception())
+        with pytest.raises(concurrent.futures.BrokenExecutor, match=broken):
+            executor.submit(warm_up[0])
+    finally:
+        executor.shutdown()
+    assert len(os.listdir("/dev/fd")) == descriptors
+    for process in processes:
+        with pytest.raises(ValueError, match="closed"):
+            process.is_alive()  # stopped, and its Process closed

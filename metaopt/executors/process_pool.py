@@ -4,7 +4,9 @@ died idle) is replaced, the task going to the next free one untried; a task past
 is stopped by killing its worker, and a worker whose task its own alarm stopped is replaced too
 (the stop may have cut an import short). The limit counts from the end of the problem's set-up,
 which the worker reports. Each worker runs one task at a time, so a death is always traced to
-its task."""
+its task. A task is pickled when submitted: one that does not pickle fails alone, at once. Any
+other error in the manager thread breaks the pool: every task waiting or running fails with
+BrokenExecutor naming it, and so does every later submit, so no caller waits for ever."""
 
 from __future__ import annotations
 
@@ -13,9 +15,10 @@ import contextlib
 import multiprocessing
 import threading
 import time
-from concurrent.futures import Future
-from dataclasses import dataclass
+from concurrent.futures import BrokenExecutor, Future, InvalidStateError
+from dataclasses import dataclass, replace
 from multiprocessing.connection import Connection, wait
+from multiprocessing.reduction import ForkingPickler
 
 from metaopt.executors.base import (
     EvaluationTask,
@@ -56,6 +59,8 @@ def _worker_main(connection: Connection) -> None:
 class _Job:
     task: EvaluationTask
     future: Future
+    #: the task as pickled for a worker's pipe (Connection.recv unpickles it there)
+    payload: memoryview
     attempt: int = 1
 
 
@@ -64,9 +69,14 @@ class _Worker:
 
     def __init__(self, context: multiprocessing.context.BaseContext) -> None:
         self.connection, child = context.Pipe()
-        self.process = context.Process(target=_worker_main, args=(child,), daemon=True)
-        self.process.start()
-        child.close()
+        try:
+            self.process = context.Process(target=_worker_main, args=(child,), daemon=True)
+            self.process.start()
+        except BaseException:  # no process to own the pipe (too many open files, say)
+            self.connection.close()
+            raise
+        finally:
+            child.close()
         self.job: _Job | None = None
         #: when the job's timed evaluation began (None: its problem is still being set up)
         self.started: float | None = None
@@ -74,7 +84,7 @@ class _Worker:
     def start(self, job: _Job) -> None:
         """Send the job's task; the job is this worker's only once sent, so a send that fails
         (OSError: the pipe broke, the process died idle) leaves the worker without it."""
-        self.connection.send(job.task)
+        self.connection.send_bytes(job.payload)
         self.job, self.started = job, None
 
     def kill(self) -> None:
@@ -94,6 +104,10 @@ class ProcessExecutor(Executor):
         self._context = multiprocessing.get_context("spawn")
         self._lock = threading.Lock()
         self._queue: collections.deque[_Job] = collections.deque()
+        #: every future submitted and not yet settled, whether it waits or runs
+        self._unsettled: set[Future] = set()
+        #: what every task and submit fails with once the manager thread failed (None: serving)
+        self._broken: BrokenExecutor | None = None
         self._pool = [_Worker(self._context) for _ in range(workers)]
         # submit() writes here to wake the manager at once instead of at its next poll.
         self._wake_reader, self._wake_writer = self._context.Pipe(duplex=False)
@@ -102,13 +116,54 @@ class ProcessExecutor(Executor):
         self._manager.start()
 
     def submit(self, task: EvaluationTask) -> Future:
+        """Queue the task for the next free worker; one that does not pickle fails at once,
+        and a broken pool (its manager thread failed) raises BrokenExecutor."""
         future: Future = Future()
+        try:
+            payload = ForkingPickler.dumps(task)
+        except Exception as error:  # a lambda or local function, an object that refuses
+            future.set_result(Outcome(task.index, None, error=_unpicklable(error)))
+            return future
+        future.add_done_callback(self._forget)
         with self._lock:
-            self._queue.append(_Job(task, future))
+            if self._broken is not None:
+                raise self._broken
+            self._unsettled.add(future)
+            self._queue.append(_Job(task, future, payload))
         self._wake_writer.send_bytes(b"")
         return future
 
+    def _forget(self, future: Future) -> None:
+        """Drop a settled future from those a failure of the manager thread fails."""
+        with self._lock:
+            self._unsettled.discard(future)
+
     def _manage(self) -> None:
+        """The manager thread: serve until shut down. An error of its own (a replacement
+        worker that cannot start, a bug) breaks the pool rather than leave tasks waiting."""
+        try:
+            self._serve()
+        except Exception as error:
+            self._break(error)
+
+    def _break(self, error: Exception) -> None:
+        """Fail every unsettled task, and every later submit, with BrokenExecutor naming the
+        error; the workers are left for shutdown to stop."""
+        broken = BrokenExecutor(
+            f"the process pool stopped: its manager thread failed with "
+            f"{type(error).__name__}: {error}"
+        )
+        broken.__cause__ = error
+        with self._lock:
+            self._broken = broken
+            unsettled = list(self._unsettled)
+        for future in unsettled:
+            with contextlib.suppress(InvalidStateError):  # cancelled by its caller meanwhile
+                future.set_exception(broken)
+
+    def _serve(self) -> None:
+        """Assign queued jobs, collect outcomes, replace dead workers and enforce time limits
+        until shutdown."""
         while not self._stopping:
             self._assign()
             busy = [w for w in self._pool if w.job is not None]
@@ -156,21 +211,27 @@ class ProcessExecutor(Executor):
             worker.started = time.monotonic()
             return
         job, worker.job = worker.job, None
-        if outcome.timed_out:  # stopped mid-evaluation, maybe mid-import: start afresh
-            worker.kill()
-            self._pool[self._pool.index(worker)] = _Worker(self._context)
         job.future.set_result(outcome)
+        if outcome.timed_out:  # stopped mid-evaluation, maybe mid-import: start afresh
+            self._renew(worker)
+
+    def _renew(self, worker: _Worker) -> None:
+        """Kill the worker and start a fresh one instead (a worker is never reused): the old
+        one's pipe and process are freed first, and it leaves the pool before, so a fresh one
+        that cannot start leaves no closed worker there for shutdown."""
+        self._pool.remove(worker)
+        worker.kill()
+        self._pool.append(_Worker(self._context))
 
     def _replace_dead(self, worker: _Worker) -> None:
         job = worker.job
         code = worker.process.exitcode
-        worker.kill()
-        self._pool[self._pool.index(worker)] = _Worker(self._context)
+        self._renew(worker)
         if job is None:
             return
         if job.attempt == 1:
             with self._lock:
-                self._queue.appendleft(_Job(job.task, job.future, attempt=2))
+                self._queue.appendleft(replace(job, attempt=2))
             return
         reason = f"worker process died twice on this candidate (exit code {code})"
         job.future.set_result(Outcome(job.task.index, None, error=reason))
@@ -181,10 +242,9 @@ class ProcessExecutor(Executor):
         if limit is None or worker.started is None or time.monotonic() - worker.started <= limit:
             return
         worker.job = None
-        worker.kill()
-        self._pool[self._pool.index(worker)] = _Worker(self._context)
         reason = f"EvaluationTimeout: exceeded the time limit of {limit:g} s (worker stopped)"
         job.future.set_result(Outcome(job.task.index, None, error=reason, wall_time=limit))
+        self._renew(worker)
 
     def shutdown(self) -> None:
         """Stop the manager and the workers (a busy one is killed after 2 s), cancel what
@@ -206,3 +266,12 @@ class ProcessExecutor(Executor):
             job.future.cancel()
         self._wake_reader.close()
         self._wake_writer.close()
+
+
+def _unpicklable(error: Exception) -> str:
+    """The failure of a task that cannot be sent to a worker process: it does not pickle."""
+    return (
+        f"the task cannot be sent to a worker process, it does not pickle "
+        f"({type(error).__name__}: {error}); a problem's factory and parameters must pickle: "
+        "a module-level class or function, or functools.partial of one"
+    )
