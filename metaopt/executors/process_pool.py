@@ -87,13 +87,16 @@ class _Worker:
         self.connection.send_bytes(job.payload)
         self.job, self.started = job, None
 
-    def kill(self) -> None:
+    def kill(self) -> int | None:
         """Kill the process (if it still runs), wait for it, then close its pipe and the Process
-        object (its sentinel's descriptor): a worker is replaced, never reused."""
+        object (its sentinel's descriptor): a worker is replaced, never reused. Returns its exit
+        code, read after the wait: before it, a process that just died may not be reaped."""
         self.process.kill()
         self.process.join()
+        code = self.process.exitcode
         self.connection.close()
         self.process.close()
+        return code
 
 
 class ProcessExecutor(Executor):
@@ -215,18 +218,19 @@ class ProcessExecutor(Executor):
         if outcome.timed_out:  # stopped mid-evaluation, maybe mid-import: start afresh
             self._renew(worker)
 
-    def _renew(self, worker: _Worker) -> None:
+    def _renew(self, worker: _Worker) -> int | None:
         """Kill the worker and start a fresh one instead (a worker is never reused): the old
         one's pipe and process are freed first, and it leaves the pool before, so a fresh one
-        that cannot start leaves no closed worker there for shutdown."""
+        that cannot start leaves no closed worker there for shutdown. Returns the old one's
+        exit code."""
         self._pool.remove(worker)
-        worker.kill()
+        code = worker.kill()
         self._pool.append(_Worker(self._context))
+        return code
 
     def _replace_dead(self, worker: _Worker) -> None:
         job = worker.job
-        code = worker.process.exitcode
-        self._renew(worker)
+        code = self._renew(worker)
         if job is None:
             return
         if job.attempt == 1:
