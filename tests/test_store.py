@@ -251,6 +251,12 @@ def _write_lock(path) -> sqlite3.Connection:
     return holder
 
 
+def _queue_evaluations(store: RunStore, run_id: int, indices: range) -> None:
+    """Queue one evaluation per index, its fitness and seed the index."""
+    for i in indices:
+        store.add_evaluation(run_id, i, i, np.full(1, i), float(i), None, None, i, 0.0)
+
+
 def test_a_flush_that_fails_keeps_its_evaluations_for_the_next_one(tmp_path):
     """A write refused (the store locked past the busy timeout) raises and loses nothing:
     once the lock is gone the next flush stores every evaluation, in order."""
@@ -258,12 +264,10 @@ def test_a_flush_that_fails_keeps_its_evaluations_for_the_next_one(tmp_path):
     store = RunStore(path, busy_timeout=0.1)
     run_id = _new_run(store)
     holder = _write_lock(path)
-    for i in range(20):
-        store.add_evaluation(run_id, i, i, np.full(1, i), float(i), None, None, i, 0.0)
+    _queue_evaluations(store, run_id, range(20))
     with pytest.raises(sqlite3.OperationalError, match="locked"):
         store.flush()
-    for i in range(20, 30):  # queued behind the kept ones
-        store.add_evaluation(run_id, i, i, np.full(1, i), float(i), None, None, i, 0.0)
+    _queue_evaluations(store, run_id, range(20, 30))  # queued behind the kept ones
     holder.commit()
     holder.close()
     store.flush()
@@ -303,14 +307,13 @@ def test_the_flusher_outlives_a_locked_store_and_stores_everything_after(tmp_pat
 
 def test_queuing_an_evaluation_never_waits_on_a_write_to_a_locked_store(tmp_path):
     """While a flush waits on another connection's write lock (and then fails), queuing goes on
-    at once; the refused rows go back ahead of those queued meanwhile, and once the lock is
+    at once; the refused rows stay ahead of those queued meanwhile, and once the lock is
     released a flush stores every evaluation once, in the order it was queued."""
     path = tmp_path / "busy.db"
     store = RunStore(path, busy_timeout=1.5)
     run_id = _new_run(store)
     holder = _write_lock(path)
-    for i in range(10):
-        store.add_evaluation(run_id, i, i, np.full(1, i), float(i), None, None, i, 0.0)
+    _queue_evaluations(store, run_id, range(10))
     errors: list[BaseException] = []
 
     def flush_in_background() -> None:
@@ -323,8 +326,7 @@ def test_queuing_an_evaluation_never_waits_on_a_write_to_a_locked_store(tmp_path
     writer.start()
     time.sleep(0.2)  # the flush is waiting on the lock
     started = time.monotonic()
-    for i in range(10, 20):
-        store.add_evaluation(run_id, i, i, np.full(1, i), float(i), None, None, i, 0.0)
+    _queue_evaluations(store, run_id, range(10, 20))
     assert time.monotonic() - started < 0.5  # not the busy timeout
     writer.join()
     assert len(errors) == 1 and "locked" in str(errors[0])
