@@ -138,9 +138,10 @@ def test_history_and_report_of_a_run_without_evaluations_refuse_in_one_line(tmp_
     """`history` (every format) and `report` of a run with no evaluation yet: one 'Error:'
     line, exit 2, no traceback and no figure folder; its empty history has no window."""
     run_id = _run_without_evaluations(tmp_path / "metaopt.db")
+    other = _run_without_evaluations(tmp_path / "metaopt.db")
     expected = [f"Error: run {run_id} has no evaluations yet; nothing to show"]
     for command in (["history", str(run_id)], ["history", str(run_id), "--format", "json"],
-                    ["report", str(run_id)], ["report", str(run_id), str(run_id)]):  # fmt: skip
+                    ["report", str(run_id)], ["report", str(run_id), str(other)]):  # fmt: skip
         done = metaopt_cli(*command, cwd=tmp_path)
         assert done.returncode == 2, (command, done.stderr)
         assert done.stderr.strip().splitlines() == expected, command
