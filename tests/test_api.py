@@ -35,6 +35,23 @@ def test_a_run_without_a_store_leaves_no_file(tmp_path, monkeypatch):
     assert list(tmp_path.iterdir()) == []
 
 
+@pytest.mark.parametrize("kind", ["file", "folder"])
+def test_a_run_without_a_store_ignores_a_file_named_memory_in_the_folder(
+    tmp_path, monkeypatch, kind
+):
+    """SQLite's in-memory store is not the file ':memory:' of the working folder: a file or a
+    folder of that name is neither refused nor touched."""
+    monkeypatch.chdir(tmp_path)
+    named = tmp_path / ":memory:"
+    if kind == "folder":
+        named.mkdir()
+    else:
+        named.write_text("not a database")
+    assert metaopt.minimize(sphere, [(-5.0, 5.0)] * 2, budget=50, seed=1).run_id is None
+    assert list(tmp_path.iterdir()) == [named]
+    assert kind == "folder" or named.read_text() == "not a database"
+
+
 def test_maximize_any_optimizer_with_named_variables_and_its_parameters():
     bounds = {"width": (0.0, 2.0), "height": (-1.0, 1.0)}
     result = metaopt.maximize(

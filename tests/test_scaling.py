@@ -412,6 +412,47 @@ def test_a_worker_that_died_idle_is_replaced_when_given_a_task(tmp_path):
         executor.shutdown()
 
 
+def test_workers_that_die_as_they_start_fail_the_task_instead_of_starting_for_ever(monkeypatch):
+    """A worker found dead before it ever answered (it died as it started) costs the task an
+    attempt: two such deaths fail it, 'died twice', and the pool starts no third worker."""
+    from metaopt.executors import process_pool
+
+    send = process_pool._Worker.start
+    killed: list[int] = []
+
+    def die_before_answering(worker, job) -> None:
+        if not worker.answered:  # the real process, really killed, before the task reaches it
+            worker.process.kill()
+            os.waitid(os.P_PID, worker.process.pid, os.WEXITED | os.WNOWAIT)
+            killed.append(worker.process.pid)
+        send(worker, job)
+
+    monkeypatch.setattr(process_pool._Worker, "start", die_before_answering)
+    executor = registry().executor("process").factory(1, None)
+    try:
+        (task,) = _sphere_tasks(1, time_limit=None)
+        outcome = executor.submit(task).result(timeout=60)
+        assert f"died twice on this candidate {KILLED}" in outcome.error
+        assert len(killed) == 2
+    finally:
+        executor.shutdown()
+
+
+def test_a_future_its_caller_cancelled_is_passed_over_and_the_pool_serves_on():
+    """Cancelling a task (waiting or running) leaves the pool serving: its outcome, if it
+    comes, is dropped, and the next tasks complete."""
+    executor = registry().executor("process").factory(1, None)
+    try:
+        first, cancelled, *later = (executor.submit(task) for task in _sphere_tasks(4, None))
+        assert cancelled.cancel()
+        assert first.result(timeout=60).error is None
+        assert [future.result(timeout=60).error for future in later] == [None, None]
+        (after,) = _sphere_tasks(1, time_limit=None)
+        assert executor.submit(after).result(timeout=60).error is None
+    finally:
+        executor.shutdown()
+
+
 class _RefusesPickling:
     """A problem parameter that cannot be sent to a worker process."""
 

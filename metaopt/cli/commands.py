@@ -7,6 +7,7 @@ import secrets
 import shlex
 import sys
 import warnings
+from concurrent.futures import BrokenExecutor
 from pathlib import Path
 from typing import Any
 
@@ -104,6 +105,9 @@ class MetaoptGroup(click.Group):
         except MetaoptError as error:
             _error_line(str(error))
             sys.exit(getattr(error, "exit_code", 2))
+        except BrokenExecutor as error:  # a fault of the workers, not of the input: exit 1
+            _error_line(str(error))
+            sys.exit(1)
 
 
 def _error_line(message: str) -> None:

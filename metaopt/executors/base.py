@@ -196,8 +196,9 @@ class Executor(ABC):
     @abstractmethod
     def submit(self, task: EvaluationTask) -> Future:
         """Start a task; the Future's result is its Outcome, a failed one included. Only an
-        executor broken for good (concurrent.futures.BrokenExecutor) fails it instead, which
-        ends the run as failed rather than leave it waiting."""
+        executor broken for good fails it with concurrent.futures.BrokenExecutor instead (and
+        raises it from later submits), which ends the run as failed rather than leave it
+        waiting."""
 
     def shutdown(self) -> None:  # noqa: B027 - nothing to free for in-process executors
         """Stop workers; unfinished tasks are abandoned."""

@@ -1,6 +1,7 @@
 """Local worker processes that survive their workers: a dead worker's task is retried once on a
 fresh process and then failed with the reason, and a worker found dead when given a task (it
-died idle) is replaced, the task going to the next free one untried; a task past its time limit
+died idle) is replaced, the task going to the next free one untried (if the dead one never
+answered, it may never start: the task spends an attempt); a task past its time limit
 is stopped by killing its worker, and a worker whose task its own alarm stopped is replaced too
 (the stop may have cut an import short). The limit counts from the end of the problem's set-up,
 which the worker reports. Each worker runs one task at a time, so a death is always traced to
@@ -80,6 +81,8 @@ class _Worker:
         self.job: _Job | None = None
         #: when the job's timed evaluation began (None: its problem is still being set up)
         self.started: float | None = None
+        #: whether it has ever answered: one found dead before that may not start at all
+        self.answered = False
 
     def start(self, job: _Job) -> None:
         """Send the job's task; the job is this worker's only once sent, so a send that fails
@@ -189,20 +192,31 @@ class ProcessExecutor(Executor):
                 self._start(worker, job)
 
     def _next_job(self) -> _Job | None:
-        """Take the job first in line off the queue (None when none waits)."""
+        """Take the job first in line off the queue, passing over those whose caller cancelled
+        them (None when none waits)."""
         with self._lock:
-            return self._queue.popleft() if self._queue else None
+            while self._queue:
+                job = self._queue.popleft()
+                if not job.future.cancelled():
+                    return job
+            return None
 
     def _start(self, worker: _Worker, job: _Job) -> None:
-        """Hand the job to an idle worker. One whose pipe is broken (it died idle: killed from
-        outside, the OOM killer) is replaced as one that died under its task, and the job,
-        which it never ran, goes back first in line with its attempt unspent."""
+        """Hand the job to an idle worker. One whose pipe is broken is replaced. If it had
+        answered before (it died idle: killed from outside, the OOM killer), the job, which it
+        never ran, goes back first in line with its attempt unspent; if it never answered, the
+        job spends an attempt as under a death, so workers that die as they start end in the
+        job's failure, not in workers started for ever."""
         try:
             worker.start(job)
         except OSError:
-            self._replace_dead(worker)
-            with self._lock:
-                self._queue.appendleft(job)
+            if worker.answered:
+                self._replace_dead(worker)
+                with self._lock:
+                    self._queue.appendleft(job)
+            else:
+                worker.job = job
+                self._replace_dead(worker)
 
     def _collect(self, worker: _Worker) -> None:
         try:
@@ -210,11 +224,12 @@ class ProcessExecutor(Executor):
         except (EOFError, OSError):
             self._replace_dead(worker)
             return
+        worker.answered = True
         if outcome == STARTED:
             worker.started = time.monotonic()
             return
         job, worker.job = worker.job, None
-        job.future.set_result(outcome)
+        _settle(job.future, outcome)
         if outcome.timed_out:  # stopped mid-evaluation, maybe mid-import: start afresh
             self._renew(worker)
 
@@ -238,7 +253,7 @@ class ProcessExecutor(Executor):
                 self._queue.appendleft(replace(job, attempt=2))
             return
         reason = f"worker process died twice on this candidate (exit code {code})"
-        job.future.set_result(Outcome(job.task.index, None, error=reason))
+        _settle(job.future, Outcome(job.task.index, None, error=reason))
 
     def _enforce_time_limit(self, worker: _Worker) -> None:
         job = worker.job
@@ -247,7 +262,7 @@ class ProcessExecutor(Executor):
             return
         worker.job = None
         reason = f"EvaluationTimeout: exceeded the time limit of {limit:g} s (worker stopped)"
-        job.future.set_result(Outcome(job.task.index, None, error=reason, wall_time=limit))
+        _settle(job.future, Outcome(job.task.index, None, error=reason, wall_time=limit))
         self._renew(worker)
 
     def shutdown(self) -> None:
@@ -270,6 +285,13 @@ class ProcessExecutor(Executor):
             job.future.cancel()
         self._wake_reader.close()
         self._wake_writer.close()
+
+
+def _settle(future: Future, outcome: Outcome) -> None:
+    """Give a job's future its outcome, unless its caller cancelled it meanwhile (a cancelled
+    future refuses a result, and one caller's cancel must not stop the pool)."""
+    with contextlib.suppress(InvalidStateError):
+        future.set_result(outcome)
 
 
 def _unpicklable(error: Exception) -> str:

@@ -208,15 +208,8 @@ class RunStore:
         """Open (or create) the store; a write waits up to ``busy_timeout`` seconds for another
         connection's write lock before it fails."""
         self.path = Path(path)
-        if self.path.is_dir():
-            raise StoreError(f"--db {self.path} is a directory; give a database file path")
-        if self.path.exists() and self.path.stat().st_size > 0:
-            with self.path.open("rb") as handle:
-                if handle.read(16) != b"SQLite format 3\x00":
-                    raise StoreError(
-                        f"{self.path} is not a SQLite database; give a metaopt store "
-                        "or a new file name"
-                    )
+        if str(self.path) != IN_MEMORY:  # a file of that name in the folder is not the store
+            self._check_file()
         try:
             self._connection = sqlite3.connect(
                 _database_uri(self.path),
@@ -245,6 +238,18 @@ class RunStore:
         self._flusher: threading.Thread | None = None
         self._owned: set[int] = set()
         self._last_heartbeat = 0.0
+
+    def _check_file(self) -> None:
+        """StoreError unless the path is a new file or a SQLite database (never a folder)."""
+        if self.path.is_dir():
+            raise StoreError(f"--db {self.path} is a directory; give a database file path")
+        if self.path.exists() and self.path.stat().st_size > 0:
+            with self.path.open("rb") as handle:
+                if handle.read(16) != b"SQLite format 3\x00":
+                    raise StoreError(
+                        f"{self.path} is not a SQLite database; give a metaopt store "
+                        "or a new file name"
+                    )
 
     def _check_or_create_schema(self) -> None:
         tables = {
