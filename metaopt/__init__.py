@@ -15,6 +15,7 @@ from metaopt.optimizer import (
     OptimizerInfo,
     budget_param,
     json_float,
+    population_param,
     restore_rng,
     rng_state,
 )
@@ -49,6 +50,7 @@ __all__ = [
     "json_float",
     "maximize",
     "minimize",
+    "population_param",
     "restore_rng",
     "rng_state",
 ]

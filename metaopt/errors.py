@@ -2,6 +2,10 @@
 
 from __future__ import annotations
 
+from collections.abc import Callable, Hashable, Iterable
+from pathlib import Path
+from typing import Any, TypeVar
+
 
 class MetaoptError(Exception):
     """Base class of every error metaopt raises on purpose."""
@@ -35,3 +39,26 @@ class RunFailed(MetaoptError):
 class SettingWarning(UserWarning):
     """Settings that run but hardly as meant (a budget smaller than an initial population); the
     CLI prints it as one 'Warning:' line."""
+
+
+_Item = TypeVar("_Item")
+
+
+def _itself(item: Any) -> Hashable:
+    """An item as once_each compares it: a file by where it resolves to."""
+    return item.resolve() if isinstance(item, Path) else item
+
+
+def once_each(
+    items: Iterable[_Item],
+    refusal: Callable[[_Item], str],
+    key: Callable[[_Item], Hashable] = _itself,
+) -> None:
+    """ConfigError with ``refusal(item)`` for the first item whose ``key`` was seen before:
+    counted twice, it would pass for two independent samples."""
+    seen: set[Hashable] = set()
+    for item in items:
+        found = key(item)
+        if found in seen:
+            raise ConfigError(refusal(item))
+        seen.add(found)

@@ -98,6 +98,19 @@ def restore_rng(rng: np.random.Generator, state: dict[str, Any]) -> None:
 MAX_POPULATION = 1_000_000
 
 
+def population_param(name: str, default: int, help: str, low: int = 1) -> Param:
+    """A count of candidates an optimizer holds or asks for at once (a population, a batch, a
+    memory), at most MAX_POPULATION: its arrays are that long, and a larger one is a slip."""
+    return Param(
+        name,
+        int,
+        default,
+        f"{help}; at most {MAX_POPULATION:,} (more would fill memory)",
+        low=low,
+        high=MAX_POPULATION,
+    )
+
+
 def budget_param(default: int = 10000) -> Param:
     """The ``budget`` parameter every optimizer declares: how many evaluations it will be told.
 

@@ -40,10 +40,10 @@ from metaopt import (
     budget_param,
     hookimpl,
     json_float,
+    population_param,
     restore_rng,
     rng_state,
 )
-from metaopt.optimizer import MAX_POPULATION
 from metaopt.space import repair_param
 
 
@@ -238,15 +238,12 @@ class CMAES(Optimizer):
 
 
 PARAMS = (
-    Param(
+    population_param(
         "population",
-        int,
         0,
         "lambda, candidates per generation (0: 4 + floor(3 ln n): 10 for the paper's 10 CPG "
-        f"parameters, 12 for nao-walk's steered controller's 15); at most {MAX_POPULATION:,}: "
-        "a generation's arrays are this long, and a larger one is a slip that would fill memory",
+        "parameters, 12 for nao-walk's steered controller's 15)",
         low=0,
-        high=MAX_POPULATION,
     ),
     Param(
         "sigma0",

@@ -33,10 +33,10 @@ from metaopt import (
     Space,
     budget_param,
     hookimpl,
+    population_param,
     restore_rng,
     rng_state,
 )
-from metaopt.optimizer import MAX_POPULATION
 from metaopt.space import repair_param
 
 Crossover = Callable[[np.ndarray, np.ndarray, np.random.Generator], tuple[np.ndarray, np.ndarray]]
@@ -326,14 +326,7 @@ class GeneticAlgorithm(Optimizer):
 
 
 PARAMS = (
-    Param(
-        "population",
-        int,
-        100,
-        f"candidates per generation; at most {MAX_POPULATION:,} (more would fill memory)",
-        low=2,
-        high=MAX_POPULATION,
-    ),
+    population_param("population", 100, "candidates per generation", low=2),
     Param("elites", int, 2, "best members passed unchanged to the next generation", low=0),
     Param("tournament", int, 2, "tournament size k of parent selection", low=1),
     Param("crossover", str, "sbx", "crossover operator", choices=("sbx", "blx")),

@@ -56,10 +56,10 @@ from metaopt import (
     budget_param,
     hookimpl,
     json_float,
+    population_param,
     restore_rng,
     rng_state,
 )
-from metaopt.optimizer import MAX_POPULATION
 from metaopt.space import repair_param
 
 PITCH_ADJUSTMENTS = ("bandwidth", "resample", "ihs", "ghs")
@@ -430,14 +430,8 @@ class HarmonySearch(Optimizer):
 
 
 PARAMS = (
-    Param(
-        "hms",
-        int,
-        20,
-        "harmony memory size: how many solutions are kept (10-30 is usual); at most "
-        f"{MAX_POPULATION:,} (more would fill memory)",
-        low=1,
-        high=MAX_POPULATION,
+    population_param(
+        "hms", 20, "harmony memory size: how many solutions are kept (10-30 is usual)"
     ),
     Param(
         "hmcr",

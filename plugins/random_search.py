@@ -9,14 +9,13 @@ import numpy as np
 from metaopt import (
     Optimizer,
     OptimizerInfo,
-    Param,
     Space,
     budget_param,
     hookimpl,
+    population_param,
     restore_rng,
     rng_state,
 )
-from metaopt.optimizer import MAX_POPULATION
 
 
 class RandomSearch(Optimizer):
@@ -60,15 +59,7 @@ def metaopt_optimizers() -> list[OptimizerInfo]:
             summary="Uniform random sampling inside the bounds (baseline)",
             factory=RandomSearch,
             params=(
-                Param(
-                    "batch_size",
-                    int,
-                    100,
-                    f"candidates asked for at once; at most {MAX_POPULATION:,} (more would fill "
-                    "memory)",
-                    low=1,
-                    high=MAX_POPULATION,
-                ),
+                population_param("batch_size", 100, "candidates asked for at once"),
                 budget_param(),
             ),
             description=__doc__,

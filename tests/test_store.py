@@ -324,7 +324,10 @@ def test_queuing_an_evaluation_never_waits_on_a_write_to_a_locked_store(tmp_path
 
     writer = threading.Thread(target=flush_in_background)
     writer.start()
-    time.sleep(0.2)  # the flush is waiting on the lock
+    deadline = time.monotonic() + 1.0
+    while not store._write_lock.locked() and time.monotonic() < deadline:
+        time.sleep(0.005)
+    assert store._write_lock.locked()  # the flush is writing, waiting on the other's lock
     started = time.monotonic()
     _queue_evaluations(store, run_id, range(10, 20))
     assert time.monotonic() - started < 0.5  # not the busy timeout

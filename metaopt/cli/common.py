@@ -1,5 +1,4 @@
-"""What every metaopt command shares: the consoles, the --db option, the executor options, the
-refusal of an item given twice."""
+"""What every metaopt command shares: the consoles, the --db option, the executor options."""
 
 from __future__ import annotations
 
@@ -7,9 +6,9 @@ import os
 import re
 import sys
 import time
-from collections.abc import Callable, Hashable, Iterable
+from collections.abc import Callable
 from pathlib import Path
-from typing import Any, TypeVar
+from typing import Any
 
 import click
 from rich.console import Console
@@ -121,26 +120,3 @@ def check_store_path(db_path: str) -> None:
         RunStore(db_path).close()
     else:
         check_output_file(db_path, "--db")
-
-
-_Item = TypeVar("_Item")
-
-
-def _itself(item: Any) -> Hashable:
-    """An item as once_each compares it: a file by where it resolves to."""
-    return item.resolve() if isinstance(item, Path) else item
-
-
-def once_each(
-    items: Iterable[_Item],
-    refusal: Callable[[_Item], str],
-    key: Callable[[_Item], Hashable] = _itself,
-) -> None:
-    """ConfigError with ``refusal(item)`` for the first item whose ``key`` was seen before:
-    counted twice, it would pass for two independent samples."""
-    seen: set[Hashable] = set()
-    for item in items:
-        found = key(item)
-        if found in seen:
-            raise ConfigError(refusal(item))
-        seen.add(found)

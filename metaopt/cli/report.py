@@ -11,7 +11,7 @@ from typing import Any
 import click
 
 from metaopt.assessment.replay import ReplaySource
-from metaopt.cli.common import db_option, once_each, require_store
+from metaopt.cli.common import db_option, require_store
 from metaopt.cli.output import check_output_folder
 from metaopt.errors import ConfigError
 from metaopt.plugins import registry
@@ -70,7 +70,6 @@ def report(
         return
     if only:
         raise ConfigError("--only selects part of an experiment: give --experiment FILE")
-    once_each(run_ids, _given_twice, key=_as_stored)
     default = f"report-{run_ids[0]}" if len(run_ids) == 1 else "report-compare"
     check_output_folder(out_dir or Path(default), "--out")
     require_store(db_path)
@@ -84,20 +83,6 @@ def report(
         click.echo(f"wrote {path}")
     if figures.note:
         click.echo(f"Note: {figures.note}.", err=True)
-
-
-def _given_twice(run_id: str) -> str:
-    """The refusal of a run given twice: the bands would count it as two runs."""
-    return f"run {run_id} is given twice; each run counts once in the bands, so give each once"
-
-
-def _as_stored(run_id: str) -> int | str:
-    """A run id as the store reads it ('01' is run 1); text that is none stays as it is (the
-    store refuses it)."""
-    try:
-        return int(run_id)
-    except ValueError:
-        return run_id
 
 
 def _report_experiment(

@@ -18,12 +18,11 @@ from metaopt.cli.common import (
     build_executor,
     console,
     db_option,
-    once_each,
     scheduling_options,
 )
 from metaopt.cli.compare import MAX_SEEDS
 from metaopt.cli.output import output_file_option
-from metaopt.errors import ConfigError, SettingWarning
+from metaopt.errors import ConfigError, SettingWarning, once_each
 from metaopt.physics import engine_names
 from metaopt.plugins import registry
 from metaopt.problem import ProblemInfo, Sense

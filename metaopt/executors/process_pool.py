@@ -210,13 +210,12 @@ class ProcessExecutor(Executor):
         try:
             worker.start(job)
         except OSError:
-            if worker.answered:
-                self._replace_dead(worker)
+            if worker.answered:  # it never ran the job: first in line again, attempt unspent
                 with self._lock:
                     self._queue.appendleft(job)
-            else:
+            else:  # it may never start: the job is charged with its death
                 worker.job = job
-                self._replace_dead(worker)
+            self._replace_dead(worker)
 
     def _collect(self, worker: _Worker) -> None:
         try:

@@ -16,7 +16,7 @@ from matplotlib.figure import Figure
 
 from metaopt.assessment.replay import replay_params
 from metaopt.comparison.experiment import Experiment
-from metaopt.errors import ConfigError
+from metaopt.errors import ConfigError, once_each
 from metaopt.plugins import Registry
 from metaopt.reporting.convergence import (
     best_so_far_band,
@@ -71,8 +71,16 @@ def run_figures(store: RunStore, run_id: int | str, plugins: Registry) -> Figure
 
 def comparison_figures(store: RunStore, run_ids: list[str], group_by: str) -> Figures:
     """Median and quartile bands of the runs' best so far, one band per group of runs;
-    ConfigError where a run has no evaluations (every band would end before it began)."""
+    ConfigError where a run is given twice (it would count as two in its band) or has no
+    evaluations (every band would end before it began)."""
     runs = [store.run(run_id) for run_id in run_ids]
+    once_each(
+        zip(run_ids, runs, strict=True),
+        lambda given: (
+            f"run {given[0]} is given twice; each run counts once in the bands, so give each once"
+        ),
+        key=lambda given: given[1].id,
+    )
     for run in runs:
         require_evaluations(store, run)
     problems = sorted({run.problem for run in runs})
