@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import concurrent.futures
+import errno
 import gc
 import os
 import resource
@@ -20,6 +21,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from metaopt import Evaluation, Problem, Space
 from metaopt.executors.base import EvaluationTask
 from metaopt.params import resolve
 from metaopt.plugins import registry
@@ -519,3 +521,123 @@ def test_a_replacement_worker_that_cannot_start_fails_every_task_instead_of_hang
     for process in processes:
         with pytest.raises(ValueError, match="closed"):
             process.is_alive()  # stopped, and its Process closed
+
+
+def test_a_pool_whose_worker_cannot_start_stops_the_workers_started_before_it(monkeypatch):
+    """A worker that cannot start (no file descriptor left) fails the pool's construction with
+    its error, and the workers started before it are stopped, joined and closed first, their
+    pipes too: no process is left running, no descriptor open."""
+    from metaopt.executors import process_pool
+
+    start = process_pool._Worker.__init__
+    started: list[process_pool._Worker] = []
+
+    def third_cannot_start(worker, context) -> None:
+        if len(started) == 2:
+            raise OSError(errno.EMFILE, "Too many open files")
+        start(worker, context)
+        started.append(worker)
+
+    monkeypatch.setattr(process_pool._Worker, "__init__", third_cannot_start)
+    resource_tracker.ensure_running()  # the first spawned process starts it, open for good
+    gc.collect()  # an earlier test's garbage closing its descriptors meanwhile would mislead
+    descriptors = set(os.listdir("/dev/fd"))
+    with pytest.raises(OSError, match="Too many open files"):
+        registry().executor("process").factory(3, None)
+    gc.collect()
+    assert set(os.listdir("/dev/fd")) <= descriptors  # none opened and left open
+    assert len(started) == 2 and all(worker.connection.closed for worker in started)
+    for worker in started:
+        with pytest.raises(ValueError, match="closed"):
+            worker.process.is_alive()  # stopped, joined, and its Process closed
+
+
+class _Sleeps(Problem):
+    """A 2-D problem whose evaluation sleeps this long: its worker stays busy until stopped."""
+
+    def __init__(self, seconds: float) -> None:
+        self.space = Space.from_bounds([-1.0, -1.0], [1.0, 1.0])
+        self.seconds = seconds
+
+    def evaluate(self, x, seed):
+        time.sleep(self.seconds)
+        return Evaluation(float(np.sum(x**2)))
+
+
+def _sleeping_tasks(count: int) -> list[EvaluationTask]:
+    """count evaluations that each sleep a minute (far longer than any test waits)."""
+    return [EvaluationTask(i, np.zeros(2), i, _Sleeps, {"seconds": 60.0}) for i in range(count)]
+
+
+def _wait_until_all_busy(executor) -> None:
+    """Wait until every worker has reported that its task's evaluation began."""
+    deadline = time.monotonic() + 60
+    while not all(worker.started is not None for worker in executor._pool):
+        assert time.monotonic() < deadline, "the workers never started their tasks"
+        time.sleep(0.05)
+
+
+def test_shutdown_cancels_unsettled_tasks_and_a_later_submit_raises():
+    """Shutting down cancels every unsettled task, the one waiting and the one running (its
+    worker is stopped, its outcome will never come), so no caller waits for ever; a submit
+    after shutdown raises RuntimeError, as concurrent.futures does, instead of queuing a task
+    that never runs."""
+    executor = registry().executor("process").factory(1, None)
+    try:
+        running, waiting = (executor.submit(task) for task in _sleeping_tasks(2))
+        _wait_until_all_busy(executor)
+    finally:
+        executor.shutdown()
+    assert running.cancelled() and waiting.cancelled()
+    with pytest.raises(concurrent.futures.CancelledError):
+        running.result(timeout=5)
+    (later,) = _sphere_tasks(1, time_limit=None)
+    with pytest.raises(RuntimeError, match="cannot submit after shutdown"):
+        executor.submit(later)
+
+
+def test_shutdown_stops_busy_workers_at_once_not_one_wait_each():
+    """Busy workers are terminated at shutdown, not each waited for in turn: two workers deep
+    in long evaluations are stopped well within a second and a half, every Process closed."""
+    executor = registry().executor("process").factory(2, None)
+    processes = [worker.process for worker in executor._pool]
+    try:
+        futures = [executor.submit(task) for task in _sleeping_tasks(2)]
+        _wait_until_all_busy(executor)
+    finally:
+        start = time.monotonic()
+        executor.shutdown()
+        took = time.monotonic() - start
+    assert took < 1.5, f"shutdown took {took:.1f} s"
+    assert all(future.cancelled() for future in futures)
+    for process in processes:
+        with pytest.raises(ValueError, match="closed"):
+            process.is_alive()
+
+
+class _UnpicklableMetric(Problem):
+    """A 2-D problem whose evaluation returns a metric that refuses to be pickled."""
+
+    def __init__(self) -> None:
+        self.space = Space.from_bounds([-1.0, -1.0], [1.0, 1.0])
+
+    def evaluate(self, x, seed):
+        return Evaluation(0.0, {"odd": _RefusesPickling()})
+
+
+def test_an_outcome_that_does_not_pickle_fails_alone_and_the_worker_serves_on():
+    """An evaluation whose outcome cannot be sent back fails its task at once, saying why in
+    one line, instead of crashing its worker twice; the same worker serves the rest."""
+    executor = registry().executor("process").factory(1, None)
+    try:
+        (worker,) = [worker.process for worker in executor._pool]
+        odd = EvaluationTask(5, np.zeros(2), 0, _UnpicklableMetric, {})
+        tasks = [odd, *_sphere_tasks(2, time_limit=None)]
+        outcomes = [executor.submit(task).result(timeout=60) for task in tasks]
+        assert outcomes[0].index == 5 and outcomes[0].fitness is None
+        refused = "TypeError: a _RefusesPickling refuses to be pickled"
+        assert outcomes[0].error == f"the outcome could not be sent back: {refused}"
+        assert [outcome.error for outcome in outcomes[1:]] == [None, None]
+        assert executor._pool[0].process is worker and worker.is_alive()  # never replaced
+    finally:
+        executor.shutdown()

@@ -5,9 +5,10 @@ answered, it may never start: the task spends an attempt); a task past its time 
 is stopped by killing its worker, and a worker whose task its own alarm stopped is replaced too
 (the stop may have cut an import short). The limit counts from the end of the problem's set-up,
 which the worker reports. Each worker runs one task at a time, so a death is always traced to
-its task. A task is pickled when submitted: one that does not pickle fails alone, at once. Any
-other error in the manager thread breaks the pool: every task waiting or running fails with
-BrokenExecutor naming it, and so does every later submit, so no caller waits for ever."""
+its task. A task is pickled when submitted, an outcome before it is sent back: one that does
+not pickle fails its task alone, at once. Any other error in the manager thread breaks the pool:
+every task waiting or running fails with BrokenExecutor naming it, and so does every later
+submit, so no caller waits for ever; nor after shutdown, which cancels every unsettled task."""
 
 from __future__ import annotations
 
@@ -34,6 +35,10 @@ from metaopt.executors.base import (
 POLL_INTERVAL = 0.05
 #: What a worker sends when its problem is set up and the task's timed evaluation begins.
 STARTED = "started"
+#: Seconds shutdown gives idle workers, told to stop, to close their problems and exit.
+IDLE_GRACE = 2.0
+#: Seconds shutdown gives a busy worker to end on SIGTERM before it is killed.
+TERMINATE_GRACE = 0.2
 
 
 def _worker_main(connection: Connection) -> None:
@@ -49,11 +54,22 @@ def _worker_main(connection: Connection) -> None:
             with contextlib.suppress(Exception):  # a set-up error is evaluate_task's to report
                 prepared_problem(task)
             connection.send(STARTED)  # the time limit counts from here
-            connection.send(evaluate_task(task))
+            connection.send_bytes(_outcome_payload(task, evaluate_task(task)))
     except (EOFError, OSError):
         pass
     finally:
         release_problems()
+
+
+def _outcome_payload(task: EvaluationTask, outcome: Outcome) -> bytes:
+    """The outcome pickled for the pipe, or, where it does not pickle (a metric that refuses),
+    the task's failure saying so: the task fails alone and the worker lives on."""
+    try:
+        return ForkingPickler.dumps(outcome)
+    except Exception as error:
+        reason = f"the outcome could not be sent back: {type(error).__name__}: {error}"
+        failure = Outcome(task.index, None, error=reason, wall_time=outcome.wall_time)
+        return ForkingPickler.dumps(failure)
 
 
 @dataclass
@@ -114,24 +130,39 @@ class ProcessExecutor(Executor):
         self._unsettled: set[Future] = set()
         #: what every task and submit fails with once the manager thread failed (None: serving)
         self._broken: BrokenExecutor | None = None
-        self._pool = [_Worker(self._context) for _ in range(workers)]
-        # submit() writes here to wake the manager at once instead of at its next poll.
-        self._wake_reader, self._wake_writer = self._context.Pipe(duplex=False)
         self._stopping = False
-        self._manager = threading.Thread(target=self._manage, name="metaopt-pool", daemon=True)
-        self._manager.start()
+        self._pool: list[_Worker] = []
+        # A failure here (a worker that cannot start, no thread left) stops and closes what
+        # had started before it propagates: no process or pipe outlives a pool never built.
+        with contextlib.ExitStack() as undo:
+            for _ in range(workers):
+                worker = _Worker(self._context)
+                undo.callback(worker.kill)
+                self._pool.append(worker)
+            # submit() writes here to wake the manager at once instead of at its next poll.
+            self._wake_reader, self._wake_writer = self._context.Pipe(duplex=False)
+            undo.callback(self._wake_reader.close)
+            undo.callback(self._wake_writer.close)
+            self._manager = threading.Thread(target=self._manage, name="metaopt-pool", daemon=True)
+            self._manager.start()
+            undo.pop_all()
 
     def submit(self, task: EvaluationTask) -> Future:
         """Queue the task for the next free worker; one that does not pickle fails at once,
-        and a broken pool (its manager thread failed) raises BrokenExecutor."""
+        a broken pool (its manager thread failed) raises BrokenExecutor, and a pool shut down
+        raises RuntimeError (as concurrent.futures does): its task would never run."""
         future: Future = Future()
         try:
             payload = ForkingPickler.dumps(task)
         except Exception as error:  # a lambda or local function, an object that refuses
-            future.set_result(Outcome(task.index, None, error=_unpicklable(error)))
-            return future
-        future.add_done_callback(self._forget)
-        with self._lock:
+            payload, refusal = None, error
+        with self._lock:  # held by shutdown as it stops: no task is queued after it
+            if self._stopping:
+                raise RuntimeError("cannot submit after shutdown")
+            if payload is None:
+                future.set_result(Outcome(task.index, None, error=_unpicklable(refusal)))
+                return future
+            future.add_done_callback(self._forget)
             if self._broken is not None:
                 raise self._broken
             self._unsettled.add(future)
@@ -265,23 +296,36 @@ class ProcessExecutor(Executor):
         self._renew(worker)
 
     def shutdown(self) -> None:
-        """Stop the manager and the workers (a busy one is killed after 2 s), cancel what
-        waits, and close every pipe, so no descriptor outlives the pool; a second call (the
-        run's, then its caller's) does nothing."""
-        if self._stopping:
-            return
-        self._stopping = True
+        """Stop the manager and the workers, an idle one told to (it closes its problems), a
+        busy one terminated at once (killed if it outlives TERMINATE_GRACE), so shutdown takes
+        no longer with more busy workers; close every pipe, so no descriptor outlives the pool.
+        Every unsettled task is cancelled: what waits, as concurrent.futures' shutdown with
+        cancel_futures does, and what ran too, since its worker is stopped and its outcome will
+        never come (its caller gets CancelledError, never waits for ever). A later submit
+        raises RuntimeError; a second call (the run's, then its caller's) does nothing."""
+        with self._lock:
+            if self._stopping:
+                return
+            self._stopping = True
         self._wake_writer.send_bytes(b"")
         self._manager.join()
+        now = time.monotonic()
+        deadlines = []
         for worker in self._pool:
             if worker.job is None:
                 with contextlib.suppress(OSError):
                     worker.connection.send(None)
-        for worker in self._pool:
-            worker.process.join(timeout=2)
-            worker.kill()  # only one still busy is killed; every pipe and process is closed
-        for job in self._queue:
-            job.future.cancel()
+                deadlines.append(now + IDLE_GRACE)
+            else:
+                worker.process.terminate()
+                deadlines.append(now + TERMINATE_GRACE)
+        for worker, deadline in zip(self._pool, deadlines, strict=True):
+            worker.process.join(timeout=max(0.0, deadline - time.monotonic()))
+            worker.kill()  # only one still running is killed; every pipe and process is closed
+        with self._lock:
+            unsettled = list(self._unsettled)
+        for future in unsettled:
+            future.cancel()
         self._wake_reader.close()
         self._wake_writer.close()
 
