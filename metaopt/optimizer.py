@@ -111,6 +111,11 @@ def population_param(name: str, default: int, help: str, low: int = 1) -> Param:
     )
 
 
+#: The most evaluations a run's budget or an optimizer's ``budget`` parameter takes: the run
+#: store keeps 64-bit integers (SQLite), and a budget past them is a slip no run would spend.
+MAX_BUDGET = 2**63 - 1
+
+
 def budget_param(default: int = 10000) -> Param:
     """The ``budget`` parameter every optimizer declares: how many evaluations it will be told.
 
@@ -125,6 +130,7 @@ def budget_param(default: int = 10000) -> Param:
         "evaluations it will be told, initial ones included: schedules span them (metaopt run "
         "sets the run's budget unless given; past it they stay at their end)",
         low=1,
+        high=MAX_BUDGET,
     )
 
 

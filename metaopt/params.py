@@ -133,7 +133,10 @@ def _exact_int(text: str) -> int:
 
 
 def _fmt(number: float) -> str:
-    return f"{number:g}"
+    """A bound, compact ('1e+06'), or exact where compact would round it (2**63 - 1 read as
+    9.22337e+18 would name a bound that is not the one checked)."""
+    compact = f"{number:g}"
+    return compact if float(compact) == number else str(number)
 
 
 def close_matches(name: str, known: Sequence[str]) -> list[str]:

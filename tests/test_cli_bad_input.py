@@ -524,6 +524,32 @@ def test_a_sync_batch_past_a_million_is_refused_in_one_line(tmp_path, monkeypatc
     assert [path.name for path in tmp_path.iterdir()] == ["batch.toml"]
 
 
+@pytest.mark.parametrize("optimizer", ["hs", "ga", "cmaes", "random"])
+def test_a_budget_past_64_bits_is_refused_in_one_line_however_given(
+    tmp_path, monkeypatch, optimizer
+):
+    """--set budget= had no upper bound where --budget has MAX_INT64: a budget of 10**30 ran
+    (its schedules spanning it), and an experiment's overflowed the store in a traceback. Now
+    --budget, --set budget= and an experiment's budget share one bound, refused before any
+    run."""
+    monkeypatch.chdir(tmp_path)
+    base = ["run", "-o", optimizer, "-p", "sphere", "--set", "dim=2"]
+    for budget in (str(10**30), "1e30", str(MAX_INT64 + 1)):
+        result = CliRunner().invoke(main, [*base, "--budget", "5", "--set", f"budget={budget}"])
+        _one_line(result, "'budget' = ", "is invalid", f"[1, {MAX_INT64}]")
+    result = CliRunner().invoke(main, [*base, "--budget", str(MAX_INT64 + 1)])
+    _one_line(result, "'--budget'", f"1<=x<={MAX_INT64}")
+    assert list(tmp_path.iterdir()) == []
+    (tmp_path / "big.toml").write_text(
+        f'name = "b"\nproblem = "sphere"\nseeds = 1\nbudget = {10**30}\n'
+        f'[[optimizers]]\nname = "{optimizer}"\n'
+    )
+    result = CliRunner().invoke(main, ["compare", "big.toml"])
+    _one_line(result, "big.toml", f"budget must be a positive number of evaluations, at most "
+              f"{MAX_INT64:,}", f"got {10**30}")  # fmt: skip
+    assert [path.name for path in tmp_path.iterdir()] == ["big.toml"]
+
+
 @pytest.mark.parametrize(
     ("args", "needles"),
     [

@@ -115,9 +115,9 @@ def test_the_csv_holds_the_values_the_terminal_table_shows(tmp_path: Path) -> No
     assert [list(row) for row in rows] == [table.fields] * 2
     rich = table.to_rich()
     shown = [column for column in table.columns if column.in_terminal]
-    assert [c.header for c in rich.columns] == [c.header for c in shown]
-    for rich_column, column in zip(rich.columns, shown):
-        assert list(rich_column._cells) == [column.render(row) for row in rows]
+    assert [str(c.header) for c in rich.columns] == [c.header for c in shown]
+    for rich_column, column in zip(rich.columns, shown):  # each cell a Text, shown as typed
+        assert list(map(str, rich_column._cells)) == [column.render(row) for row in rows]
     assert {"success_rate", "evaluations_to_target", "wall_time_median"} <= set(table.fields)
 
 

@@ -120,6 +120,10 @@ def test_tables_from_before_a_metric_joined_their_version_are_compared_on_those_
     _search(tmp_path / "new.csv", "run 1", speeds, falls=3, table=newer)  # times 2, 3, 4: 3
     _search(tmp_path / "steady.csv", "run 2", speeds, falls=0, table=newer)
     _search(tmp_path / "old.csv", "run 3", speeds, falls=1)
+    # baselines of the same figures as the searches, in files of their own
+    _search(tmp_path / "new-base.csv", "run 4", speeds, falls=3, table=newer)
+    _search(tmp_path / "steady-base.csv", "run 5", speeds, falls=0, table=newer)
+    _search(tmp_path / "old-base.csv", "run 6", speeds, falls=1)
     both = metaopt_cli("robustness-summary", "new.csv", "steady.csv", "--csv", "n.csv",
                        cwd=tmp_path)  # fmt: skip
     assert both.returncode == 0, both.stderr
@@ -128,13 +132,13 @@ def test_tables_from_before_a_metric_joined_their_version_are_compared_on_those_
     ode = [r["time_to_fall"] for r in rows if r["engine"] == "ode"]
     assert ode == ["3.0", "nan", "3.0", "nan"]
     assert "–" in both.stdout and "nan" not in both.stdout  # the steady one's: none fell
-    steady = metaopt_cli("robustness-summary", "steady.csv", "--against", "steady.csv",
+    steady = metaopt_cli("robustness-summary", "steady.csv", "--against", "steady-base.csv",
                          cwd=tmp_path)  # fmt: skip
     assert steady.returncode == 0, steady.stderr
     assert "nan" not in steady.stdout  # no pair measured time_to_fall: a dash, not +nan
     assert re.search(r"ode\s.*│\s+–\s+│", steady.stdout.split("pair by pair")[1])
-    mixed = metaopt_cli("robustness-summary", "new.csv", "old.csv", "--against", "old.csv",
-                        "--against", "new.csv", "--csv", "m.csv", cwd=tmp_path)  # fmt: skip
+    mixed = metaopt_cli("robustness-summary", "new.csv", "old.csv", "--against", "old-base.csv",
+                        "--against", "new-base.csv", "--csv", "m.csv", cwd=tmp_path)  # fmt: skip
     assert mixed.returncode == 0, mixed.stderr
     rows = _rows(tmp_path / "m.csv")
     assert list(rows[0]) == ["search", "candidate", "engine", "failed", *TABLE.metrics]
@@ -293,6 +297,23 @@ def test_a_table_given_twice_is_refused_not_counted_as_two_searches(tmp_path: Pa
         one_error_line(metaopt_cli(*args, cwd=tmp_path), needle)
 
 
+def test_a_search_given_against_itself_is_refused_not_paired_with_itself(tmp_path: Path) -> None:
+    """A search's table also given as a baseline (--against), however written ('./', a
+    symlink), was paired with itself (every difference 0, shown as a comparison) or stood for
+    both designs: refused in one line, nothing written."""
+    for name in ("s1.csv", "s2.csv", "s3.csv"):
+        _search(tmp_path / name, "run 1", {"mujoco": [0.5, 0.6]})
+    (tmp_path / "link.csv").symlink_to("s1.csv")
+    for args in (
+        ("s1.csv", "--against", "s1.csv"),
+        ("s1.csv", "--against", "./s1.csv"),
+        ("s1.csv", "s2.csv", "--against", "s3.csv", "--against", "link.csv"),
+    ):
+        done = metaopt_cli("robustness-summary", *args, "--csv", "out.csv", cwd=tmp_path)
+        one_error_line(done, f"--against {Path(args[-1])} is also given as a search", "give each")
+    assert not (tmp_path / "out.csv").exists()
+
+
 def test_robustness_summary_names_a_written_path_with_brackets_as_it_is(tmp_path: Path) -> None:
     """'wrote PATH' prints the path as written, not as rich markup ('[final]' kept)."""
     _search(tmp_path / "s1.csv", "run 1", {"mujoco": [0.5, 0.6]})
@@ -300,3 +321,20 @@ def test_robustness_summary_names_a_written_path_with_brackets_as_it_is(tmp_path
     assert done.returncode == 0, done.stderr
     assert "wrote m[final].csv" in done.stdout
     assert (tmp_path / "m[final].csv").exists()
+
+
+def test_robustness_summary_shows_labels_and_paths_as_typed_whatever_their_characters(
+    tmp_path: Path,
+) -> None:
+    """rich's escape doubles a trailing backslash wherever no tag follows ('gait\\' showed as
+    'gait\\\\' in the table) and leaves emoji codes to rich (':cd:' in a path showed as a CD):
+    a table cell, 'wrote PATH' and an Error line show the label and the paths as typed."""
+    _search(tmp_path / "s:cd:1.csv", "gait\\", {"mujoco": [0.5, 0.6]})
+    done = metaopt_cli("robustness-summary", "s:cd:1.csv", "--csv", "m:cd:\\[x].csv",
+                       cwd=tmp_path)  # fmt: skip
+    assert done.returncode == 0, done.stderr
+    assert re.search(r"│ s:cd:1\.csv\s+│ gait\\ ", done.stdout), done.stdout
+    assert "wrote m:cd:\\[x].csv" in done.stdout
+    assert (tmp_path / "m:cd:\\[x].csv").exists()
+    one_error_line(metaopt_cli("robustness-summary", "no:cd:.csv", cwd=tmp_path),
+                   "Error: no:cd:.csv: no such file")  # fmt: skip

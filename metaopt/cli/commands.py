@@ -12,7 +12,7 @@ from pathlib import Path
 from typing import Any
 
 import click
-from rich.markup import escape
+from rich.text import Text
 
 from metaopt.assessment.candidates import find_start
 from metaopt.assessment.replay import find_source, replay_candidate, replay_seeds
@@ -44,6 +44,7 @@ from metaopt.problem import ProblemInfo
 from metaopt.reporting import display
 from metaopt.reporting.convergence import require_evaluations
 from metaopt.reporting.history import run_history
+from metaopt.reporting.plain import plain
 from metaopt.reporting.recent import DEFAULT_WINDOW, recent_figures
 from metaopt.resampling import AGGREGATES
 from metaopt.running import (
@@ -113,18 +114,16 @@ class MetaoptGroup(click.Group):
 def _error_line(message: str) -> None:
     """'Error: message' on one line, the message as it is (never read as rich markup)."""
     text = " ".join(message.splitlines())
-    errors.print(f"[bold red]Error:[/] {escape(text)}", highlight=False)
+    errors.print(Text.assemble(plain("Error:", "bold red"), " ", plain(text)))
 
 
 def _warning_line(message, category, filename, lineno, file=None, line=None) -> None:
     """SettingWarnings as one line; anything else as Python shows it."""
     if issubclass(category, SettingWarning):
-        errors.print(f"[yellow]Warning:[/] {escape(str(message))}", highlight=False)
+        errors.print(Text.assemble(plain("Warning:", "yellow"), " ", plain(str(message))))
     else:
-        errors.print(
-            warnings.formatwarning(message, category, filename, lineno, line),
-            end="", markup=False, highlight=False,
-        )  # fmt: skip
+        errors.print(plain(warnings.formatwarning(message, category, filename, lineno, line)),
+                     end="")  # fmt: skip
 
 
 @click.group(cls=MetaoptGroup)
@@ -149,13 +148,13 @@ def list_plugins(name: str | None) -> None:
         console.print("[dim]metaopt list NAME shows one in full with every parameter.[/]")
         return
     kind, info = plugins.any_kind(name)  # raises with close matches of every kind
-    console.print(f"[bold cyan]{escape(info.name)}[/] ({kind}): {escape(info.summary)}")
+    console.print(Text.assemble(plain(info.name, "bold cyan"), plain(f" ({kind}): {info.summary}")))
     if kind not in ("optimizer", "problem"):
         if getattr(info, "unavailable", None):
-            console.print(f"unavailable: {info.unavailable}", markup=False)
+            console.print(plain(f"unavailable: {info.unavailable}"))
         return
     if info.description:
-        console.print(display.reflow(info.description), markup=False)
+        console.print(plain(display.reflow(info.description)))
     if kind == "problem":
         console.print(f"default budget: {info.default_budget} evaluations")
     console.print(display.params_table("parameters", info.params))
@@ -410,9 +409,11 @@ def _with_progress(label: str, db_path: str, start) -> RunResult:
             return start(progress)
     except RunInterrupted as stop:
         errors.print(
-            f"Interrupted: run {stop.run_id} stopped with {stop.stored} evaluations stored in "
-            f"{db_path}. Resume with: metaopt resume {stop.run_id} --db {shlex.quote(db_path)}",
-            markup=False,  # a path is no rich markup
+            plain(
+                f"Interrupted: run {stop.run_id} stopped with {stop.stored} evaluations stored "
+                f"in {db_path}. Resume with: metaopt resume {stop.run_id} --db "
+                f"{shlex.quote(db_path)}"
+            )
         )
         sys.exit(130)
 
@@ -540,7 +541,7 @@ def export_command(run_id: str, fmt: str, output: Path | None, db_path: str) -> 
         else:
             with written_whole(output) as handle:
                 count = export_run(store, run_id, fmt, handle)
-            errors.print(f"wrote {count} evaluations to {output}", markup=False)
+            errors.print(plain(f"wrote {count} evaluations to {output}"))
 
 
 @main.command("replay")
@@ -576,13 +577,13 @@ def replay_command(
             over_seeds = replay_seeds(source, plugins, overrides, seeds, seed, pool)
         console.print(display.replay_seeds_table(over_seeds))
         if all(o.fitness is None for o in over_seeds.outcomes):
-            errors.print(f"Every replay failed: {over_seeds.outcomes[0].error}", markup=False)
+            errors.print(plain(f"Every replay failed: {over_seeds.outcomes[0].error}"))
             sys.exit(1)
     else:
         result = replay_candidate(source, plugins, overrides)
         console.print(display.replay_table(result))
         if result.replayed.fitness is None:
-            errors.print(f"The replay failed: {result.replayed.error}", markup=False)
+            errors.print(plain(f"The replay failed: {result.replayed.error}"))
             sys.exit(1)
     if video is not None:
         write_replay_video(source, overrides, video)

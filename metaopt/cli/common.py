@@ -16,7 +16,9 @@ from rich.console import Console
 from metaopt.cli.output import check_output_file
 from metaopt.errors import ConfigError, MetaoptError
 from metaopt.executors.base import Executor, SerialExecutor
+from metaopt.optimizer import MAX_BUDGET
 from metaopt.plugins import registry
+from metaopt.reporting.plain import plain
 from metaopt.storage.run_store import DEFAULT_DB, RunStore
 
 #: Output for a file or a pipe is never cut to a terminal's width: tables come out whole.
@@ -27,10 +29,10 @@ SCHEDULER_ADDRESS = re.compile(r"((tcp|tls|ucx|inproc)://)?[^\s/:]+(:\d+)?")
 
 #: More local workers than this is a typing slip, not a machine.
 MAX_WORKERS = 1024
-#: The largest seed or budget: SQLite stores integers of 64 bits.
+#: The largest seed or count of evaluations (a window, --at): SQLite stores integers of 64 bits.
 MAX_INT64 = 2**63 - 1
-#: what every --budget accepts: a whole number of evaluations, 1 or more
-BUDGET = click.IntRange(min=1, max=MAX_INT64)
+#: what every --budget accepts: a whole number of evaluations, as the budget parameter does
+BUDGET = click.IntRange(min=1, max=MAX_BUDGET)
 
 db_option = click.option(
     "--db",
@@ -83,7 +85,7 @@ def build_executor(name: str | None, workers: int | None, scheduler: str | None)
         missing = executor.dashboard_needs
         note = f" (install {missing} to see it; until then a placeholder)" if missing else ""
         line = f"The {name} executor's dashboard: {executor.dashboard}{note}"
-        errors.print(line, highlight=False)
+        errors.print(plain(line))
     return executor
 
 

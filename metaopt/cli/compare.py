@@ -33,6 +33,7 @@ from metaopt.comparison.transfer import replay_on_other_engines, transfer_table
 from metaopt.errors import ConfigError
 from metaopt.plugins import Registry, registry
 from metaopt.reporting import display
+from metaopt.reporting.plain import plain
 from metaopt.reporting.result_table import ResultTable
 from metaopt.running import RunInterrupted
 from metaopt.storage.experiment_store import ExperimentStore
@@ -197,16 +198,18 @@ def compare(
                 else "the runs under way stopped with what they finished stored"
             )
             errors.print(
-                f"Interrupted: {where} in {db_path}. Run the same `metaopt compare` again to go "
-                "on from there.",
-                markup=False,  # a path is no rich markup
+                plain(
+                    f"Interrupted: {where} in {db_path}. Run the same `metaopt compare` again to "
+                    "go on from there."
+                )
             )
             sys.exit(130)
         counts = Counter(d.action for d in done)
         shown.print(
-            f"experiment {experiment.name!r}: {counts['ran']} run(s) ran, {counts['resumed']} "
-            f"resumed, {counts['skipped']} already finished (in {db_path})",
-            markup=False,  # a name or path in brackets is no rich markup
+            plain(
+                f"experiment {experiment.name!r}: {counts['ran']} run(s) ran, "
+                f"{counts['resumed']} resumed, {counts['skipped']} already finished (in {db_path})"
+            )
         )
         _show_stored(experiment, store, plugins, csv_path, fmt, at, transfer, transfer_csv_path)
 
@@ -215,10 +218,10 @@ def _tell(shown: Console, member: CellSeed, done: int, total: int) -> None:
     """A line per member of a --jobs comparison as it ends."""
     setting = f" [{member.cell.setting}]" if member.cell.setting else ""
     shown.print(
-        f"[{done}/{total}] {member.cell.optimizer.label}{setting} seed {member.seed}: run "
-        f"{member.run_id} {member.action}",
-        highlight=False,
-        markup=False,  # a setting in brackets is no rich markup
+        plain(
+            f"[{done}/{total}] {member.cell.optimizer.label}{setting} seed {member.seed}: run "
+            f"{member.run_id} {member.action}"
+        )
     )
 
 
@@ -291,4 +294,4 @@ def _write_csv(table: ResultTable, csv_path: Path | None) -> None:
     if csv_path is not None:
         with written_whole(csv_path) as handle:
             table.write_csv(handle)
-        errors.print(f"wrote {len(table.rows)} rows to {csv_path}", markup=False)
+        errors.print(plain(f"wrote {len(table.rows)} rows to {csv_path}"))

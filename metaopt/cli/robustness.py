@@ -9,7 +9,6 @@ from dataclasses import replace
 from pathlib import Path
 
 import click
-from rich.markup import escape
 
 from metaopt.assessment import goal_ranking, robustness, search_medians
 from metaopt.assessment.candidates import Candidate, find_candidates
@@ -27,6 +26,7 @@ from metaopt.physics import engine_names
 from metaopt.plugins import registry
 from metaopt.problem import ProblemInfo, Sense
 from metaopt.reporting import display
+from metaopt.reporting.plain import plain
 from metaopt.settings import parse_problem_settings
 
 
@@ -156,8 +156,8 @@ def robustness_command(
     evaluations = sum(len(plan.tasks) for plan in plans)
     inert = (f", {evaluations} evaluations (left out: {inert_pairs} x a cell on an engine it "
              "changes nothing on)") if inert_pairs else ""  # fmt: skip
-    console.print(f"perturbation table {escape(table.version)}: {len(table.cells)} cells x "
-                  f"{len(names)} engines x {seeds} seeds{several}{inert}")  # fmt: skip
+    console.print(plain(f"perturbation table {table.version}: {len(table.cells)} cells x "
+                        f"{len(names)} engines x {seeds} seeds{several}{inert}"))  # fmt: skip
     with build_executor(executor, workers, scheduler) as pool:
         results = robustness.evaluate(plans, pool)
     ranked = robustness.rank(
@@ -179,23 +179,23 @@ def robustness_command(
         )
     )
     if goals:
-        console.print(display.goal_verdict(best.candidate.label, best.totals, goals))
+        console.print(plain(display.goal_verdict(best.candidate.label, best.totals, goals)))
     if csv_path is not None:
         robustness.write_csv(
             csv_path, table,
             [(r.candidate, [*r.results, *r.totals]) for r in ranked],
         )  # fmt: skip
-        console.print(f"wrote {escape(str(csv_path))}")
+        console.print(plain(f"wrote {csv_path}"))
     if ranking_path is not None:
         robustness.write_ranking(ranking_path, ranked)
-        console.print(f"wrote {escape(str(ranking_path))}")
+        console.print(plain(f"wrote {ranking_path}"))
     if drawn_metrics is not None:
         from metaopt.reporting.plots import save_figure
 
         save_figure(
             robustness.figure(best.candidate, table, best.results, *drawn_metrics), figure_path
         )
-        console.print(f"wrote {escape(str(figure_path))}")
+        console.print(plain(f"wrote {figure_path}"))
 
 
 def _candidates(
@@ -233,6 +233,15 @@ _EACH_ONCE = "each table counts once, so give each file once"
 def _given_twice(path: Path) -> str:
     """The refusal of a robustness table given twice."""
     return f"{path} is given twice; {_EACH_ONCE}"
+
+
+def _against_itself(path: Path) -> str:
+    """The refusal of a baseline that is also one of the searches: a table paired with itself
+    differs by nothing, and a design's search is no baseline of it."""
+    return (
+        f"--against {path} is also given as a search; a baseline is another design's table "
+        "(on the same seed), so give each table once, as a search or after --against"
+    )
 
 
 def _maximizes(info: ProblemInfo, candidate: Candidate) -> bool:
@@ -319,6 +328,7 @@ def robustness_summary_command(
     and two designs run on the same seeds by their paired differences (--against)."""
     once_each(csv_paths, _given_twice)
     once_each(against_paths, lambda path: f"--against {path} is given twice; {_EACH_ONCE}")
+    once_each([*csv_paths, *against_paths], _against_itself)  # a repeat here is a baseline
     tables = [search_medians.read_table(path) for path in csv_paths]
     baselines = [search_medians.read_table(path) for path in against_paths]
     compared, goals = _alike_with_goals([*tables, *baselines], goal_texts)
@@ -329,17 +339,17 @@ def robustness_summary_command(
     drawn = None if figure_path is None else search_medians.figure(tables, summary, goals)
     console.print(display.search_medians_table(tables, summary))
     if goals:
-        console.print(display.search_medians_verdict(tables, summary, goals))
+        console.print(plain(display.search_medians_verdict(tables, summary, goals)))
     if paired is not None:
         console.print(display.paired_differences_table(paired, tables[0].metrics))
     if csv_path is not None:
         search_medians.write_medians(csv_path, tables, summary, paired)
-        console.print(f"wrote {escape(str(csv_path))}")
+        console.print(plain(f"wrote {csv_path}"))
     if drawn is not None:
         from metaopt.reporting.plots import save_figure
 
         save_figure(drawn, figure_path)
-        console.print(f"wrote {escape(str(figure_path))}")
+        console.print(plain(f"wrote {figure_path}"))
 
 
 @click.command("robustness-rank")
@@ -374,4 +384,4 @@ def robustness_rank_command(
     console.print(display.goal_ranking_table(ranked, goals))
     if ranking_path is not None:
         goal_ranking.write_goal_ranking(ranking_path, ranked)
-        console.print(f"wrote {escape(str(ranking_path))}")
+        console.print(plain(f"wrote {ranking_path}"))

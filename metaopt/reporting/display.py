@@ -11,7 +11,6 @@ from typing import Any
 
 from rich import box
 from rich.console import Console
-from rich.markup import escape
 from rich.progress import (
     BarColumn,
     MofNCompleteColumn,
@@ -21,6 +20,7 @@ from rich.progress import (
     TimeRemainingColumn,
 )
 from rich.table import Table
+from rich.text import Text
 
 from metaopt.assessment.replay import Replay, ReplaySource, SeedReplay
 from metaopt.assessment.robustness import is_rate, summarize
@@ -33,6 +33,7 @@ from metaopt.assessment.search_medians import (
 )
 from metaopt.params import Param
 from metaopt.reporting.history import RunHistory
+from metaopt.reporting.plain import plain
 from metaopt.reporting.recent import RecentFigures
 from metaopt.running import RunResult, common_seeds_mode
 from metaopt.storage.run_store import CandidateRecord, EvaluationCounts, RunRecord
@@ -59,10 +60,9 @@ def params_table(title: str, params: Sequence[Param]) -> Table:
     return table
 
 
-def _plain(*cells: str) -> list[str]:
-    """Cells of data (names, labels, settings, paths, messages) escaped, so that a bracket in
-    them shows as typed instead of being read as rich markup."""
-    return [escape(cell) for cell in cells]
+def _plain(*cells: str) -> list[Text]:
+    """A row's cells of data (names, labels, settings, paths, messages), each as typed."""
+    return [plain(cell) for cell in cells]
 
 
 def plugin_overview(kind: str, infos: Sequence, sources: Sequence[str]) -> Table:
@@ -75,10 +75,12 @@ def plugin_overview(kind: str, infos: Sequence, sources: Sequence[str]) -> Table
     table.add_column("range", overflow="fold")
     table.add_column("summary / meaning", overflow="fold")
     for info, source in zip(infos, sources):
-        summary = f"{escape(info.summary)} [dim](from {escape(source)})[/]"
+        summary = Text.assemble(plain(info.summary), " ", plain(f"(from {source})", "dim"))
         if getattr(info, "unavailable", ""):
-            summary = f"[bold red]unavailable:[/] {escape(info.unavailable)}\n{summary}"
-        table.add_row(f"[bold cyan]{escape(info.name)}[/]", "", "", "", summary)
+            summary = Text.assemble(
+                plain("unavailable:", "bold red"), " ", plain(info.unavailable), "\n", summary
+            )
+        table.add_row(plain(info.name, "bold cyan"), "", "", "", summary)
         for p in getattr(info, "params", ()):
             table.add_row(
                 *_plain(f"  {p.name}", p.type_name, str(p.default), p.range_text(), p.help)
@@ -183,7 +185,10 @@ def replay_table(replay: Replay) -> Table:
     """`metaopt replay`: the stored metrics beside the replayed ones."""
     source = replay.source
     table = Table(
-        title=escape(f"{source.label} replayed ({_replay_setting(source, replay.problem_params)})"),
+        title=plain(
+            f"{source.label} replayed ({_replay_setting(source, replay.problem_params)})",
+            "table.title",
+        ),
         title_justify="left",
     )
     stored = _stored_scores(source)
@@ -419,7 +424,7 @@ def history_table(run: RunRecord, history: RunHistory) -> Table:
     for header in headers:
         table.add_column(header, justify="right")
     for name in history.metrics:
-        header = escape(f"{name} ({history.kind(name)})")
+        header = plain(f"{name} ({history.kind(name)})")
         table.add_column(header, justify="right", overflow="fold")
     if history.spread:
         table.add_column("spread", justify="right")
@@ -507,16 +512,15 @@ def robustness_table(
         inert.setdefault((engine, reason), []).append(cell)
     caption = "\n".join(f"left out on {engine} ({', '.join(cells)}): {reason}"
                          for (engine, reason), cells in inert.items())  # fmt: skip
-    table = Table(title=escape(f"{label}: perturbation table {version}"), title_justify="left",
-                  caption=escape(caption) or None, caption_justify="left")  # fmt: skip
+    table = Table(title=plain(f"{label}: perturbation table {version}", "table.title"),
+                  title_justify="left", caption=plain(caption, "table.caption") or None,
+                  caption_justify="left")  # fmt: skip
     table.add_column("perturbation")
     table.add_column("engine")
     table.add_column("seeds", justify="right")
-    table.add_column(f"{metrics[0]} (median)", justify="right")
+    table.add_column(plain(f"{metrics[0]} (median)"), justify="right")
     table.add_column("IQR", justify="right")
-    for metric in metrics[1:]:
-        table.add_column(metric if is_rate(metric) else f"{metric} (median)",
-                         justify="right")  # fmt: skip
+    _add_figure_columns(table, metrics[1:])
     for number, result in enumerate([*results, *totals]):
         if number == len(results):
             table.add_section()
@@ -535,9 +539,9 @@ def search_medians_table(tables: Sequence, summary: Medians) -> Table:
     median, a rate's value), then per engine their median and standard deviation over the
     searches below a line."""
     first = tables[0]
-    table = Table(title=f"{len(tables)} searches over perturbation table {first.version}: "
-                  "whole table per engine, and the median and sd over the searches",
-                  title_justify="left")  # fmt: skip
+    table = Table(title=plain(f"{len(tables)} searches over perturbation table {first.version}: "
+                              "whole table per engine, and the median and sd over the searches",
+                              "table.title"), title_justify="left")  # fmt: skip
     for name in ("search", "candidate", "engine"):
         table.add_column(name)
     _add_figure_columns(table, first.metrics)
@@ -585,8 +589,9 @@ def goal_ranking_table(ranked: Sequence, goals: Sequence) -> Table:
     the goals it misses there."""
     first = ranked[0].table
     sources = {r.table.source for r in ranked}
-    table = Table(title=f"candidates ranked over perturbation table {first.version} by the "
-                  f"goals {', '.join(map(str, goals))}", title_justify="left")  # fmt: skip
+    table = Table(title=plain(f"candidates ranked over perturbation table {first.version} by "
+                              f"the goals {', '.join(map(str, goals))}", "table.title"),
+                  title_justify="left")  # fmt: skip
     columns = ["rank", *(["file"] if len(sources) > 1 else []), "candidate", "goals missed",
                "goal margin", "engine"]  # fmt: skip
     for name in columns:
@@ -609,8 +614,9 @@ def goal_ranking_table(ranked: Sequence, goals: Sequence) -> Table:
 
 
 def _add_figure_columns(table: Table, metrics: Sequence[str]) -> None:
+    """A column per metric, headed by its name as typed ('(median)' after a metric's)."""
     for metric in metrics:
-        table.add_column(metric if is_rate(metric) else f"{metric} (median)",
+        table.add_column(plain(metric if is_rate(metric) else f"{metric} (median)"),
                          justify="right")  # fmt: skip
 
 
@@ -654,12 +660,13 @@ def robustness_ranking(
     fitness, the first metric's median and the rates."""
     rates = [m for m in metrics if is_rate(m)]
     by = f" by the goals {', '.join(map(str, goals))}" if goals else ""
-    table = Table(title=f"candidates ranked over perturbation table {version}{by}",
-                  title_justify="left")  # fmt: skip
+    table = Table(title=plain(f"candidates ranked over perturbation table {version}{by}",
+                              "table.title"), title_justify="left")  # fmt: skip
     margin = ["goals missed", "goal margin"] if goals else []
     for name in ("rank", "candidate", *margin, "score", "engine", "fitness (mean)",
                  f"{metrics[0]} (median)", *rates):  # fmt: skip
-        table.add_column(name, justify="left" if name in ("candidate", "engine") else "right")
+        justify = "left" if name in ("candidate", "engine") else "right"
+        table.add_column(plain(name), justify=justify)
     for number, entry in enumerate(ranked, start=1):
         if number > 1:
             table.add_section()
@@ -707,7 +714,7 @@ def replay_seeds_table(replay: SeedReplay) -> Table:
         f"({_replay_setting(source, replay.problem_params)})"
         + (f", {failed} failed" if failed else "")
     )
-    table = Table(title=escape(title), title_justify="left")
+    table = Table(title=plain(title, "table.title"), title_justify="left")
     stored = _stored_scores(source)
     for column in ("", *(["stored"] if stored is not None else []), "median", "IQR"):
         table.add_column(column, justify="left" if not column else "right")

@@ -7,8 +7,9 @@ import csv
 from dataclasses import dataclass
 from typing import Any, TextIO
 
-from rich.markup import escape
 from rich.table import Table
+
+from metaopt.reporting.plain import plain
 
 Row = dict[str, Any]
 #: significant digits of numbers in the terminal (the CSV has them all)
@@ -57,12 +58,12 @@ class ResultTable:
         """The terminal table (the columns ``in_terminal``); its text is shown as it is, never
         read as rich markup (a label or setting may hold brackets)."""
         shown = [column for column in self.columns if column.in_terminal]
-        table = Table(title=escape(self.title), title_justify="left")
+        table = Table(title=plain(self.title, "table.title"), title_justify="left")
         for index, column in enumerate(shown):
             justify = "left" if index < 2 else "right"
-            table.add_column(escape(column.header), justify=justify, overflow="fold")
+            table.add_column(plain(column.header), justify=justify, overflow="fold")
         for row in self.rows:
-            table.add_row(*(escape(column.render(row)) for column in shown))
+            table.add_row(*(plain(column.render(row)) for column in shown))
         return table
 
     def to_markdown(self) -> str:

@@ -119,8 +119,6 @@ def _prepared(spec: RunSpec, optimizer_info: OptimizerInfo, problem_info: Proble
     """The spec checked, and the problem and optimizer built from it (ConfigError on bad input;
     the problem is closed when a later check fails), with the warnings the settings deserve,
     to be given only once nothing refuses the run."""
-    if spec.budget < 1:
-        raise ConfigError(f"budget must be a positive number of evaluations, got {spec.budget}")
     spec.settings.check(spec.budget)
     optimizer_params = _optimizer_params(spec, optimizer_info)
     problem_params = resolve(problem_info.params, spec.problem_params, problem_info.name)

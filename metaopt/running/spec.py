@@ -10,7 +10,7 @@ from typing import Any, Protocol
 import numpy as np
 
 from metaopt.errors import ConfigError
-from metaopt.optimizer import MAX_POPULATION, Optimizer
+from metaopt.optimizer import MAX_BUDGET, MAX_POPULATION, Optimizer
 from metaopt.resampling import AGGREGATES
 
 MODES = ("sync", "async")
@@ -92,7 +92,12 @@ class RunSettings:
         return self.batch or optimizer.batch_size
 
     def check(self, budget: int) -> None:
-        """ConfigError naming the bad setting."""
+        """ConfigError naming the bad setting, or a budget outside 1 to MAX_BUDGET."""
+        if not 1 <= budget <= MAX_BUDGET:
+            raise ConfigError(
+                f"budget must be a positive number of evaluations, at most {MAX_BUDGET:,} (a "
+                f"run store keeps 64-bit integers), got {budget}"
+            )
         if self.mode not in MODES:
             raise ConfigError(f"unknown mode {self.mode!r}; accepted: {', '.join(MODES)}")
         if self.aggregate not in AGGREGATES:
