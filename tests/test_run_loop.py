@@ -1,6 +1,7 @@
 """The run loop: seeding, storage, sense translation, failures and interruption."""
 
 import json
+import math
 import time
 from concurrent.futures import BrokenExecutor
 
@@ -339,3 +340,52 @@ def test_a_broken_executor_keeps_every_failure_that_finished_and_fails_as_broken
         (record,) = store.runs()
         assert record.status == "failed" and record.message.startswith("BrokenExecutor: ")
         assert store.evaluation_counts(record.id) == EvaluationCounts(11, 11, 0)
+
+
+@pytest.mark.parametrize("checkpoints", [math.inf, 0.0], ids=["no-checkpoint", "every-tell"])
+@pytest.mark.parametrize(
+    ("resample", "workers", "together", "breaks_at", "start_points"),
+    [
+        (1, 4, 3, 1, 0),  # 0 and 2 finish, 1 breaks, the submit of 3 raises
+        (1, 4, 3, 1, 4),  # the same, candidates 0 to 3 a warm start's points
+        (2, 6, 6, (2, 3), 0),  # candidates 0 and 2 finish, both samples of 1 break
+    ],
+)
+def test_a_resumed_async_run_asks_again_every_candidate_lost_in_flight(
+    tmp_path, monkeypatch, checkpoints, resample, workers, together, breaks_at, start_points
+):
+    """A candidate in flight when the executor broke, below one that finished, is asked again
+    on resume under its own number (its seeds, its warm start point): the run ends finished
+    with its whole budget, every index once, all told, whether the last checkpoint came after
+    the last tell or never; the same seed gives the same broken and resumed run."""
+    monkeypatch.setattr("metaopt.running.session.CHECKPOINT_INTERVAL", checkpoints)
+    plugins = registry()
+    random, sphere = plugins.optimizer("random"), plugins.problem("sphere")
+    start = [[0.5, 0.5]] if start_points else None
+    settings = RunSettings(mode="async", resample=resample, start=start, start_points=start_points)
+    spec = RunSpec("random", "sphere", 16, 3, problem_params={"dim": 2}, settings=settings)
+    with RunStore(tmp_path / "runs.db") as store:
+        whole = {e.index: e for e in store.evaluations(run(spec, random, sphere, store).run_id)}
+        runs = []
+        for _ in range(2):
+            breaking = BreakingExecutor(workers, breaks_at, together)
+            with pytest.raises(BrokenExecutor, match="broke at task "):
+                run(spec, random, sphere, store, executor=breaking)
+            broken = store.runs()[-1]
+            finished = {task.index for task in breaking.evaluated}
+            assert {i // resample for i in finished} == {0, 2}  # candidate 1 a gap
+            again = BreakingExecutor(workers)
+            resumed = resume(broken.id, store, random, sphere, executor=again)
+            record = store.run(broken.id)
+            assert (resumed.evaluations, record.status) == (16, "finished")
+            asked = sorted(task.index for task in again.evaluated)
+            assert asked == sorted(set(range(16)) - finished)
+            assert (record.checkpoint["told_below"], record.checkpoint["told_extra"]) == (16, [])
+            evaluations = list(store.evaluations(broken.id))
+            assert [e.index for e in evaluations] == list(range(16))
+            assert all(e.seed == whole[e.index].seed for e in evaluations)
+            assert all(task.seed == whole[task.index].seed for task in again.evaluated)
+            starts = [e for e in evaluations if e.candidate < start_points]
+            assert all(np.array_equal(e.x, whole[e.index].x) for e in starts)  # the lost one's too
+            runs.append(_stored(store, broken.id))
+        assert runs[0] == runs[1]

@@ -10,6 +10,7 @@ from collections.abc import Callable, Iterator
 from concurrent.futures import FIRST_COMPLETED, BrokenExecutor, Future, as_completed, wait
 from contextlib import contextmanager
 from dataclasses import dataclass, replace
+from itertools import chain, islice
 from typing import Any
 
 import numpy as np
@@ -230,27 +231,36 @@ class Session:
                 self._tell_one(candidate, progress)
 
         open_candidates = self._unfinished_candidates()
-        next_index = max([self.told_below, *((c.number + 1) * self.resample
-                                              for c in open_candidates)])  # fmt: skip
         with self._keeping_finished(in_flight, take):
             for candidate in open_candidates:
                 if candidate.complete:
                     self._tell_one(candidate, progress)
                 else:
                     self._submit(executor, [candidate], in_flight)
-            while in_flight or (next_index < self.total and not self.stopping):
+            numbers = self._numbers_to_ask({c.number for c in open_candidates}, len(in_flight))
+            number = next(numbers, None)
+            while in_flight or (number is not None and not self.stopping):
                 while (
-                    len(in_flight) < executor.capacity
-                    and next_index < self.total
-                    and not self.stopping
+                    len(in_flight) < executor.capacity and number is not None and not self.stopping
                 ):
-                    x = self._ask(next_index // self.resample, 1)[0]
-                    candidate = Candidate(next_index // self.resample, x, [None] * self.resample)
+                    candidate = Candidate(number, self._ask(number, 1)[0], [None] * self.resample)
                     self._submit(executor, [candidate], in_flight)
-                    next_index += self.resample
+                    number = next(numbers, None)
                 done, _ = wait(list(in_flight), return_when=FIRST_COMPLETED)
                 for future in done:
                     take(future)
+
+    def _numbers_to_ask(self, open_numbers: set[int], started: int) -> Iterator[int]:
+        """The candidate numbers an async run asks, in order: on a resume first each one below
+        the highest told or stored that is neither (it was in flight when the run stopped), as
+        many as the budget has room for beside the ``started`` evaluations (a resume's budget
+        may lie below the highest stored index); then new ones up to the budget."""
+        known = open_numbers | self.told_extra
+        told_below = self.told_below // self.resample
+        first_new = max([told_below, *(n + 1 for n in known)])
+        missing = (n for n in range(told_below, first_new) if n not in known)
+        room = max(0, (self.total - self.stored - started) // self.resample)
+        return chain(islice(missing, room), range(first_new, self.total // self.resample))
 
     @contextmanager
     def _keeping_finished(
