@@ -10,6 +10,7 @@ import json
 import multiprocessing
 import os
 import shlex
+import shutil
 import signal
 import sqlite3
 import statistics
@@ -24,8 +25,9 @@ from click.testing import CliRunner
 
 from metaopt.cli import main
 from metaopt.storage.export import dump_json
+from metaopt.storage.run_store import RunStore
 from metaopt_problems.functions import BenchmarkFunction
-from tests.conftest import metaopt_cli, one_error_line
+from tests.conftest import FIXTURES, metaopt_cli, one_error_line
 from tests.engines import needs_ode
 
 BASIC = {"METAOPT_LOAD_PLUGINS": "harmony_search,genetic_algorithm,random_search,functions"}
@@ -137,6 +139,35 @@ def test_a_run_whose_evaluations_all_fail_stops_and_says_why(tmp_path):
     assert shown["status"] == "failed" and "all 10 evaluations failed" in shown["message"]
     assert shown["recent"]["succeeded"] == 0 and shown["recent"]["fitness"] is None
     assert "fitness: all 10 failed" in in_process("show", "1", folder=tmp_path)
+
+
+def test_a_broken_executor_is_one_error_line_and_keeps_what_finished(tmp_path):
+    """An executor broken for good (an outside plugin's, found through its entry point) fails
+    the run with one Error line naming the break, exit 1, no traceback; every evaluation that
+    finished before it is stored with the failed run."""
+    plugin = tmp_path / "plugin"
+    (plugin / "breaking_executor-0.1.dist-info").mkdir(parents=True)
+    shutil.copy(FIXTURES / "breaking_executor.py", plugin)
+    (plugin / "breaking_executor-0.1.dist-info" / "METADATA").write_text(
+        "Metadata-Version: 2.1\nName: breaking-executor\nVersion: 0.1\n"
+    )
+    (plugin / "breaking_executor-0.1.dist-info" / "entry_points.txt").write_text(
+        "[metaopt]\nbreaking = breaking_executor\n"
+    )
+    done = metaopt_cli(
+        "run", "-o", "random", "-p", "sphere", "--budget", "16", "--set", "batch_size=4",
+        "--executor", "breaking", "--workers", "2", cwd=tmp_path, extra_path=plugin,
+        env={"METAOPT_LOAD_PLUGINS": "random_search,functions,breaking"},
+    )  # fmt: skip
+    assert done.returncode == 1, done.stderr
+    lines = done.stderr.strip().splitlines()
+    assert len(lines) == 1 and lines[0].startswith("Error: "), done.stderr
+    assert "the breaking executor broke at task 6" in lines[0]
+    assert "Traceback" not in done.stdout + done.stderr
+    with RunStore(tmp_path / "metaopt.db") as store:
+        (record,) = store.runs()
+        assert record.status == "failed"
+        assert sorted(e.index for e in store.evaluations(record.id)) == [0, 1, 2, 3, 4, 5, 7]
 
 
 @pytest.mark.parametrize(

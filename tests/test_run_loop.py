@@ -1,7 +1,9 @@
 """The run loop: seeding, storage, sense translation, failures and interruption."""
 
 import json
+import math
 import time
+from concurrent.futures import BrokenExecutor
 
 import numpy as np
 import pytest
@@ -11,6 +13,7 @@ from metaopt.errors import RunFailed
 from metaopt.plugins import registry
 from metaopt.running import RunSettings, RunSpec, resume, run
 from metaopt.storage.run_store import EvaluationCounts, RunStore
+from tests.fixtures.breaking_executor import BreakingExecutor
 
 
 def _stored(store: RunStore, run_id: int) -> list[tuple]:
@@ -277,3 +280,112 @@ def test_a_run_without_one_whole_candidate_fails_and_says_why(tmp_path):
             run(spec, plugins.optimizer("random"), info, store)
         record = store.runs()[0]
         assert record.status == "failed" and "every third call fails" in record.message
+
+
+@pytest.mark.parametrize(
+    ("mode", "together", "breaks_at"),
+    [
+        ("sync", 4, 6),  # 4, 5 and 7 of the second batch finish, then 6 breaks the executor
+        ("sync", 1, 5),  # 4 finishes, 5 breaks, the submit of 6 raises
+        ("async", 1, 6),  # 0 to 3 are told, 4 and 5 finish, 6 breaks, the submit of 7 raises
+        ("async", 3, 1),  # 0 and 2 finish, 1 breaks, the submit of 3 raises
+    ],
+)
+def test_a_broken_executor_loses_no_evaluation_that_finished(tmp_path, mode, together, breaks_at):
+    """Every evaluation that finished before the executor broke for good (BrokenExecutor from
+    a future or from a later submit) is stored with the failed run, and its resume evaluates
+    none of them again; a sync run's resume ends row for row as the run that never broke."""
+    plugins = registry()
+    random, sphere = plugins.optimizer("random"), plugins.problem("sphere")
+    spec = RunSpec("random", "sphere", 16, 3, optimizer_params={"batch_size": 4},
+                   problem_params={"dim": 2}, settings=RunSettings(mode=mode))  # fmt: skip
+    with RunStore(tmp_path / "runs.db") as store:
+        whole = run(spec, random, sphere, store)
+        breaking = BreakingExecutor(4, breaks_at, together)
+        with pytest.raises(BrokenExecutor, match=f"broke at task {breaks_at} "):
+            run(spec, random, sphere, store, executor=breaking)
+        broken = store.runs()[-1]
+        assert broken.status == "failed" and broken.message.startswith("BrokenExecutor: ")
+        finished = sorted(task.index for task in breaking.evaluated)
+        assert breaks_at not in finished and len(finished) >= 1
+        assert sorted(e.index for e in store.evaluations(broken.id)) == finished
+        again = BreakingExecutor(4)
+        resumed = resume(broken.id, store, random, sphere, executor=again)
+        assert not {task.index for task in again.evaluated} & set(finished)
+        assert resumed.evaluations == len(finished) + len(again.evaluated)
+        if mode == "sync":
+            assert resumed.evaluations == 16
+            assert _stored(store, broken.id) == _stored(store, whole.run_id)
+
+
+class Fails(Problem):
+    """A 1-D problem whose every evaluation fails."""
+
+    def __init__(self) -> None:
+        self.space = Space.from_bounds([-1.0], [1.0])
+
+    def evaluate(self, x: np.ndarray, seed: int) -> Evaluation:
+        raise ValueError("never evaluates")
+
+
+def test_a_broken_executor_keeps_every_failure_that_finished_and_fails_as_broken(tmp_path):
+    """Failures kept after the break pass the all-failed stop (ten) without stopping there: all
+    eleven that finished are stored, and the run fails with the break, not as 'all failed'."""
+    info = ProblemInfo("fails", "never evaluates", factory=Fails)
+    spec = RunSpec("random", "fails", 24, 1, optimizer_params={"batch_size": 12})
+    breaking = BreakingExecutor(12, breaks_at=3, together=12)
+    with RunStore(tmp_path / "runs.db") as store:
+        with pytest.raises(BrokenExecutor, match="broke at task 3 "):
+            run(spec, registry().optimizer("random"), info, store, executor=breaking)
+        (record,) = store.runs()
+        assert record.status == "failed" and record.message.startswith("BrokenExecutor: ")
+        assert store.evaluation_counts(record.id) == EvaluationCounts(11, 11, 0)
+
+
+@pytest.mark.parametrize("checkpoints", [math.inf, 0.0], ids=["no-checkpoint", "every-tell"])
+@pytest.mark.parametrize(
+    ("resample", "workers", "together", "breaks_at", "start_points"),
+    [
+        (1, 4, 3, 1, 0),  # 0 and 2 finish, 1 breaks, the submit of 3 raises
+        (1, 4, 3, 1, 4),  # the same, candidates 0 to 3 a warm start's points
+        (2, 6, 6, (2, 3), 0),  # candidates 0 and 2 finish, both samples of 1 break
+    ],
+)
+def test_a_resumed_async_run_asks_again_every_candidate_lost_in_flight(
+    tmp_path, monkeypatch, checkpoints, resample, workers, together, breaks_at, start_points
+):
+    """A candidate in flight when the executor broke, below one that finished, is asked again
+    on resume under its own number (its seeds, its warm start point): the run ends finished
+    with its whole budget, every index once, all told, whether the last checkpoint came after
+    the last tell or never; the same seed gives the same broken and resumed run."""
+    monkeypatch.setattr("metaopt.running.session.CHECKPOINT_INTERVAL", checkpoints)
+    plugins = registry()
+    random, sphere = plugins.optimizer("random"), plugins.problem("sphere")
+    start = [[0.5, 0.5]] if start_points else None
+    settings = RunSettings(mode="async", resample=resample, start=start, start_points=start_points)
+    spec = RunSpec("random", "sphere", 16, 3, problem_params={"dim": 2}, settings=settings)
+    with RunStore(tmp_path / "runs.db") as store:
+        whole = {e.index: e for e in store.evaluations(run(spec, random, sphere, store).run_id)}
+        runs = []
+        for _ in range(2):
+            breaking = BreakingExecutor(workers, breaks_at, together)
+            with pytest.raises(BrokenExecutor, match="broke at task "):
+                run(spec, random, sphere, store, executor=breaking)
+            broken = store.runs()[-1]
+            finished = {task.index for task in breaking.evaluated}
+            assert {i // resample for i in finished} == {0, 2}  # candidate 1 a gap
+            again = BreakingExecutor(workers)
+            resumed = resume(broken.id, store, random, sphere, executor=again)
+            record = store.run(broken.id)
+            assert (resumed.evaluations, record.status) == (16, "finished")
+            asked = sorted(task.index for task in again.evaluated)
+            assert asked == sorted(set(range(16)) - finished)
+            assert (record.checkpoint["told_below"], record.checkpoint["told_extra"]) == (16, [])
+            evaluations = list(store.evaluations(broken.id))
+            assert [e.index for e in evaluations] == list(range(16))
+            assert all(e.seed == whole[e.index].seed for e in evaluations)
+            assert all(task.seed == whole[task.index].seed for task in again.evaluated)
+            starts = [e for e in evaluations if e.candidate < start_points]
+            assert all(np.array_equal(e.x, whole[e.index].x) for e in starts)  # the lost one's too
+            runs.append(_stored(store, broken.id))
+        assert runs[0] == runs[1]

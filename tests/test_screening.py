@@ -1,6 +1,7 @@
 """metaopt run --screen: a cheap bound first, the full evaluation only where a rank needs it."""
 
 import json
+from concurrent.futures import BrokenExecutor
 
 import numpy as np
 import pytest
@@ -8,11 +9,13 @@ from click.testing import CliRunner
 
 from metaopt import ConfigError, Evaluation, Problem, ProblemInfo, Space
 from metaopt.cli import main
+from metaopt.executors.base import Executor
 from metaopt.plugins import registry
 from metaopt.reporting.convergence import run_convergence
 from metaopt.reporting.report import run_figures
 from metaopt.running import RunSettings, RunSpec, resume, run
 from metaopt.storage.run_store import EvaluationCounts, RunStore
+from tests.fixtures.breaking_executor import BreakingExecutor
 
 POPULATION = 24
 
@@ -51,11 +54,14 @@ def _info(problem: TwoPartSphere) -> ProblemInfo:
     return ProblemInfo("two-part-sphere", "test", factory=lambda: problem)
 
 
-def _run(store, problem, screen, budget=POPULATION * 12, optimizer="cmaes", **settings):
+def _run(
+    store, problem, screen, budget=POPULATION * 12, optimizer="cmaes",
+    executor: Executor | None = None, **settings,
+):  # fmt: skip
     params = {"population": POPULATION, "sigma0": 0.3} if optimizer == "cmaes" else {}
     spec = RunSpec(optimizer, "two-part-sphere", budget, 5, optimizer_params=params,
                    settings=RunSettings(screen=screen, **settings))  # fmt: skip
-    return run(spec, registry().optimizer(optimizer), _info(problem), store)
+    return run(spec, registry().optimizer(optimizer), _info(problem), store, executor=executor)
 
 
 def test_screening_changes_no_step_of_cmaes_and_skips_most_full_evaluations(tmp_path):
@@ -130,6 +136,36 @@ def test_an_interrupted_screened_run_resumes_to_the_same_end(tmp_path):
         statuses = [[e.status for e in store.evaluations(r)] for r in (stopped.id, whole.run_id)]
         assert statuses[0] == statuses[1]  # the same candidates completed, none extra
         assert (store.run(stopped.id).checkpoint["state"]
+                == store.run(whole.run_id).checkpoint["state"])  # fmt: skip
+
+
+@pytest.mark.parametrize(
+    "together",
+    [1, 3],  # 1: the first complete finishes, the second breaks, the third's submit raises;
+    # 3: the first and third finish, the second breaks, the fourth's submit raises
+)
+def test_a_broken_executor_loses_no_complete_evaluation_that_finished(tmp_path, together):
+    """The complete evaluations that finished before the executor broke for good are stored
+    with the failed run; its resume screens the batch again (the order needs every bound) but
+    completes none of them again, and ends where the run that never broke does (though which
+    ranked-out candidates were started ahead of the cut may differ: reused ones take no worker)."""
+    with RunStore(tmp_path / "runs.db") as store:
+        whole = _run(store, TwoPartSphere(), screen=True, executor=BreakingExecutor(4))
+        breaking = BreakingExecutor(4, breaks_at=POPULATION + 1, together=together)
+        with pytest.raises(BrokenExecutor, match=f"broke at task {POPULATION + 1} "):
+            _run(store, TwoPartSphere(), screen=True, executor=breaking)
+        broken = store.runs()[-1]
+        assert broken.status == "failed" and broken.message.startswith("BrokenExecutor: ")
+        completed = sorted(t.index for t in breaking.evaluated if t.phase == "complete")
+        assert len(completed) == (1 if together == 1 else 2)
+        assert sorted(e.index for e in store.evaluations(broken.id)) == completed
+        again = BreakingExecutor(4)
+        cmaes = registry().optimizer("cmaes")
+        resumed = resume(broken.id, store, cmaes, _info(TwoPartSphere()), executor=again)
+        assert not {t.index for t in again.evaluated if t.phase == "complete"} & set(completed)
+        assert resumed.evaluations == whole.evaluations
+        assert resumed.best_fitness == whole.best_fitness
+        assert (store.run(broken.id).checkpoint["state"]
                 == store.run(whole.run_id).checkpoint["state"])  # fmt: skip
 
 

@@ -6,8 +6,11 @@ from __future__ import annotations
 import math
 import time
 import warnings
-from concurrent.futures import FIRST_COMPLETED, Future, as_completed, wait
+from collections.abc import Callable, Iterator
+from concurrent.futures import FIRST_COMPLETED, BrokenExecutor, Future, as_completed, wait
+from contextlib import contextmanager
 from dataclasses import dataclass, replace
+from itertools import chain, islice
 from typing import Any
 
 import numpy as np
@@ -84,6 +87,8 @@ class Session:
         self.told_extra: set[int] = set()  # candidates told beyond told_below (async)
         self.stored = self.failed = self.screened = 0
         self.first_error: str | None = None
+        #: the executor broke for good: the outcomes that finished are kept and the run fails
+        self.broken = False
         self.best_score = math.inf
         target = self.settings.target
         #: the optimizer's (minimizing) score at which the run stops
@@ -208,7 +213,7 @@ class Session:
             if self.settings.screen:
                 self._screen_and_complete(executor, candidates)
             else:
-                self._collect(self._submit(executor, candidates), candidates)
+                self._collect(executor, candidates)
             scores = np.array([self._score(c) for c in candidates])
             self.optimizer.tell(np.array([c.x for c in candidates]), scores)
             next_index += count * self.resample
@@ -217,28 +222,61 @@ class Session:
 
     def _run_async(self, executor: Executor, progress: Progress | None) -> None:
         in_flight: dict[Future, Candidate] = {}
-        open_candidates = self._unfinished_candidates()
-        next_index = max([self.told_below, *((c.number + 1) * self.resample
-                                              for c in open_candidates)])  # fmt: skip
-        for candidate in open_candidates:
+
+        def take(future: Future) -> None:
+            """Store a finished outcome; its candidate, once complete, is told at once."""
+            candidate = in_flight.pop(future)
+            self._record(candidate, future.result())
             if candidate.complete:
                 self._tell_one(candidate, progress)
-            else:
-                in_flight.update(self._submit(executor, [candidate]))
-        while in_flight or (next_index < self.total and not self.stopping):
-            while (
-                len(in_flight) < executor.capacity and next_index < self.total and not self.stopping
-            ):
-                x = self._ask(next_index // self.resample, 1)[0]
-                candidate = Candidate(next_index // self.resample, x, [None] * self.resample)
-                in_flight.update(self._submit(executor, [candidate]))
-                next_index += self.resample
-            done, _ = wait(list(in_flight), return_when=FIRST_COMPLETED)
-            for future in done:
-                candidate = in_flight.pop(future)
-                self._record(candidate, future.result())
+
+        open_candidates = self._unfinished_candidates()
+        with self._keeping_finished(in_flight, take):
+            for candidate in open_candidates:
                 if candidate.complete:
                     self._tell_one(candidate, progress)
+                else:
+                    self._submit(executor, [candidate], in_flight)
+            numbers = self._numbers_to_ask({c.number for c in open_candidates}, len(in_flight))
+            number = next(numbers, None)
+            while in_flight or (number is not None and not self.stopping):
+                while (
+                    len(in_flight) < executor.capacity and number is not None and not self.stopping
+                ):
+                    candidate = Candidate(number, self._ask(number, 1)[0], [None] * self.resample)
+                    self._submit(executor, [candidate], in_flight)
+                    number = next(numbers, None)
+                done, _ = wait(list(in_flight), return_when=FIRST_COMPLETED)
+                for future in done:
+                    take(future)
+
+    def _numbers_to_ask(self, open_numbers: set[int], started: int) -> Iterator[int]:
+        """The candidate numbers an async run asks, in order: on a resume first each one below
+        the highest told or stored that is neither (it was in flight when the run stopped), as
+        many as the budget has room for beside the ``started`` evaluations (a resume's budget
+        may lie below the highest stored index); then new ones up to the budget."""
+        known = open_numbers | self.told_extra
+        told_below = self.told_below // self.resample
+        first_new = max([told_below, *(n + 1 for n in known)])
+        missing = (n for n in range(told_below, first_new) if n not in known)
+        room = max(0, (self.total - self.stored - started) // self.resample)
+        return chain(islice(missing, room), range(first_new, self.total // self.resample))
+
+    @contextmanager
+    def _keeping_finished(
+        self, futures: dict[Future, Candidate], take: Callable[[Future], None]
+    ) -> Iterator[None]:
+        """Where the executor breaks inside (BrokenExecutor), every future of ``futures`` not
+        yet taken that finished with an outcome is taken before the run fails: a fault loses
+        nothing that finished, and a resume reuses it instead of evaluating it again."""
+        try:
+            yield
+        except BrokenExecutor:
+            self.broken = True
+            for future in list(futures):
+                if future.done() and not future.cancelled() and future.exception() is None:
+                    take(future)
+            raise
 
     def _ask(self, first: int, count: int) -> np.ndarray:
         """Candidates number first to first + count - 1: the warm start's points while they
@@ -288,9 +326,11 @@ class Session:
             self.told_extra.discard(self.told_below // self.resample)
             self.told_below += self.resample
 
-    def _submit(self, executor: Executor, candidates: list[Candidate]) -> dict[Future, Candidate]:
-        """Start every missing sample of the candidates; stored ones (resume) are reused."""
-        futures: dict[Future, Candidate] = {}
+    def _submit(
+        self, executor: Executor, candidates: list[Candidate], futures: dict[Future, Candidate]
+    ) -> None:
+        """Start every missing sample of the candidates, each future into ``futures`` as it is
+        started (a later submit may raise); stored ones (resume) are reused."""
         for candidate in candidates:
             for sample in range(self.resample):
                 if candidate.outcomes[sample] is not None:
@@ -302,7 +342,6 @@ class Session:
                     self.stored += 1
                     continue
                 futures[executor.submit(self._task(candidate, index))] = candidate
-        return futures
 
     def _task(
         self, candidate: Candidate, index: int, phase: str = "evaluate",
@@ -365,27 +404,28 @@ class Session:
                 else:
                     break
 
-        while len(decided) < cut:
-            while len(in_flight) < executor.workers and ahead < cut and not ranked_out(ahead):
-                candidate = order[ahead]
-                ahead += 1
-                if candidate.number in reused:
-                    done[candidate.number] = candidate.outcomes[0] = reused[candidate.number]
-                    self.stored += 1
-                    decide()
-                    continue
-                screen = _evaluation_of(screened[candidate.number])
-                task = self._task(candidate, candidate.number, "complete", screen)
-                in_flight[executor.submit(task)] = candidate
-            decide()
-            if len(decided) < cut:
-                assert in_flight, "a candidate still to decide is being completed"
-                finished, _ = wait(list(in_flight), return_when=FIRST_COMPLETED)
-                for future in finished:
-                    finish(future)
+        with self._keeping_finished(in_flight, finish):
+            while len(decided) < cut:
+                while len(in_flight) < executor.workers and ahead < cut and not ranked_out(ahead):
+                    candidate = order[ahead]
+                    ahead += 1
+                    if candidate.number in reused:
+                        done[candidate.number] = candidate.outcomes[0] = reused[candidate.number]
+                        self.stored += 1
+                        decide()
+                        continue
+                    screen = _evaluation_of(screened[candidate.number])
+                    task = self._task(candidate, candidate.number, "complete", screen)
+                    in_flight[executor.submit(task)] = candidate
                 decide()
-        for future in as_completed(list(in_flight)):  # started ahead of the cut: kept
-            finish(future)
+                if len(decided) < cut:
+                    assert in_flight, "a candidate still to decide is being completed"
+                    finished, _ = wait(list(in_flight), return_when=FIRST_COMPLETED)
+                    for future in finished:
+                        finish(future)
+                    decide()
+            for future in as_completed(list(in_flight)):  # started ahead of the cut: kept
+                finish(future)
         for candidate in order[cut:]:
             screen = screened[candidate.number]
             candidate.bound = screen.fitness
@@ -428,17 +468,27 @@ class Session:
         """The (minimizing) score of a completed outcome: +inf where it failed."""
         return math.inf if outcome.fitness is None else self.sign * outcome.fitness
 
-    def _collect(self, futures: dict[Future, Candidate], candidates: list[Candidate]) -> None:
-        """Store every outcome as soon as it completes (in-process ones without waiting)."""
-        waiting = []
-        for future, candidate in futures.items():
-            if future.done():
-                self._record(candidate, future.result())
-            else:
-                waiting.append(future)
-        if waiting:  # as_completed costs a lock even with nothing to wait for
-            for future in as_completed(waiting):
-                self._record(futures[future], future.result())
+    def _collect(self, executor: Executor, candidates: list[Candidate]) -> None:
+        """Evaluate the candidates' missing samples, storing every outcome as soon as it
+        completes (in-process ones without waiting)."""
+        futures: dict[Future, Candidate] = {}
+
+        def take(future: Future) -> None:
+            """Store a finished outcome."""
+            candidate = futures.pop(future)
+            self._record(candidate, future.result())
+
+        with self._keeping_finished(futures, take):
+            self._submit(executor, candidates, futures)
+            waiting = []
+            for future in list(futures):
+                if future.done():
+                    take(future)
+                else:
+                    waiting.append(future)
+            if waiting:  # as_completed costs a lock even with nothing to wait for
+                for future in as_completed(waiting):
+                    take(future)
 
     def _record(self, candidate: Candidate, outcome: Outcome) -> None:
         candidate.outcomes[outcome.index % self.resample] = outcome
@@ -451,7 +501,8 @@ class Session:
             outcome.metrics, outcome.error, self.seeds(outcome.index), outcome.wall_time,
             outcome.screened,
         )  # fmt: skip
-        if self.failed >= self.stored >= ALL_FAILED_STOP and self.stored < self.total:
+        all_failed = self.failed >= self.stored >= ALL_FAILED_STOP and self.stored < self.total
+        if all_failed and not self.broken:  # a broken run stops anyway, all it finished kept
             raise RunFailed(self._why_failed() + "; stopped early")
 
     def _why_failed(self) -> str:
