@@ -641,3 +641,47 @@ def test_an_outcome_that_does_not_pickle_fails_alone_and_the_worker_serves_on():
         assert executor._pool[0].process is worker and worker.is_alive()  # never replaced
     finally:
         executor.shutdown()
+
+
+def _refuse_unpickling() -> None:
+    """What a _RefusesUnpickling's pickle calls when loaded: it raises."""
+    raise ValueError("a _RefusesUnpickling refuses to be unpickled")
+
+
+class _RefusesUnpickling:
+    """A metric value that pickles in the worker but raises when the parent unpickles it."""
+
+    def __reduce__(self) -> tuple:
+        return _refuse_unpickling, ()
+
+
+class _UnreadableMetric(Problem):
+    """A 2-D problem whose evaluation returns a metric that pickles but cannot be unpickled."""
+
+    def __init__(self) -> None:
+        self.space = Space.from_bounds([-1.0, -1.0], [1.0, 1.0])
+
+    def evaluate(self, x, seed):
+        return Evaluation(0.0, {"odd": _RefusesUnpickling()})
+
+
+def test_an_outcome_that_does_not_unpickle_fails_alone_and_the_worker_serves_on():
+    """An outcome that the worker sends but the parent cannot unpickle fails its task alone,
+    saying why in one line, with its index and wall time, instead of breaking the pool (the
+    load raised in the manager thread: every task failed with BrokenExecutor); the same worker,
+    alive and idle, serves the rest."""
+    executor = registry().executor("process").factory(1, None)
+    try:
+        (worker,) = [worker.process for worker in executor._pool]
+        odd = EvaluationTask(5, np.zeros(2), 0, _UnreadableMetric, {})
+        tasks = [odd, *_sphere_tasks(2, time_limit=None)]
+        outcomes = [executor.submit(task).result(timeout=60) for task in tasks]
+        assert outcomes[0].index == 5 and outcomes[0].fitness is None
+        refused = "ValueError: a _RefusesUnpickling refuses to be unpickled"
+        assert outcomes[0].error == f"the outcome could not be read back: {refused}"
+        assert outcomes[0].wall_time > 0  # from the start of its timed evaluation
+        assert [outcome.error for outcome in outcomes[1:]] == [None, None]
+        assert executor._broken is None
+        assert executor._pool[0].process is worker and worker.is_alive()  # never replaced
+    finally:
+        executor.shutdown()

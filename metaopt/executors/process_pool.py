@@ -6,9 +6,11 @@ is stopped by killing its worker, and a worker whose task its own alarm stopped 
 (the stop may have cut an import short). The limit counts from the end of the problem's set-up,
 which the worker reports. Each worker runs one task at a time, so a death is always traced to
 its task. A task is pickled when submitted, an outcome before it is sent back: one that does
-not pickle fails its task alone, at once. Any other error in the manager thread breaks the pool:
-every task waiting or running fails with BrokenExecutor naming it, and so does every later
-submit, so no caller waits for ever; nor after shutdown, which cancels every unsettled task."""
+not pickle fails its task alone, at once; so does an outcome the parent cannot unpickle (a class
+it cannot import, a load that raises), its worker serving on. Any other error in the manager
+thread breaks the pool: every task waiting or running fails with BrokenExecutor naming it, and
+so does every later submit, so no caller waits for ever; nor after shutdown, which cancels
+every unsettled task."""
 
 from __future__ import annotations
 
@@ -249,12 +251,25 @@ class ProcessExecutor(Executor):
             self._replace_dead(worker)
 
     def _collect(self, worker: _Worker) -> None:
+        """Read the worker's message: that its task's evaluation began, or the task's outcome.
+        Reading the bytes and unpickling them are apart: a pipe that fails means the worker
+        died, while bytes that do not unpickle here (a class the parent cannot import, a load
+        that raises) are a bad outcome, failing its task alone; the worker, idle, serves on."""
         try:
-            outcome = worker.connection.recv()
+            payload = worker.connection.recv_bytes()
         except (EOFError, OSError):
             self._replace_dead(worker)
             return
         worker.answered = True
+        try:
+            outcome = ForkingPickler.loads(payload)
+        except Exception as error:  # any error a load may raise, EOFError too: not the pipe's
+            job, worker.job = worker.job, None
+            reason = f"the outcome could not be read back: {type(error).__name__}: {error}"
+            # its wall time as the parent saw it: from the start of the timed evaluation
+            wall = 0.0 if worker.started is None else time.monotonic() - worker.started
+            _settle(job.future, Outcome(job.task.index, None, error=reason, wall_time=wall))
+            return
         if outcome == STARTED:
             worker.started = time.monotonic()
             return
