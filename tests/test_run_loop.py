@@ -11,7 +11,7 @@ import pytest
 from metaopt import ConfigError, Evaluation, Problem, ProblemInfo, Sense, Space
 from metaopt.errors import RunFailed
 from metaopt.plugins import registry
-from metaopt.running import RunSettings, RunSpec, resume, run
+from metaopt.running import RunInterrupted, RunSettings, RunSpec, resume, run
 from metaopt.storage.run_store import EvaluationCounts, RunStore
 from tests.fixtures.breaking_executor import BreakingExecutor
 
@@ -283,39 +283,88 @@ def test_a_run_without_one_whole_candidate_fails_and_says_why(tmp_path):
 
 
 @pytest.mark.parametrize(
-    ("mode", "together", "breaks_at"),
+    ("fault", "raised", "says", "status", "message"),
     [
-        ("sync", 4, 6),  # 4, 5 and 7 of the second batch finish, then 6 breaks the executor
-        ("sync", 1, 5),  # 4 finishes, 5 breaks, the submit of 6 raises
-        ("async", 1, 6),  # 0 to 3 are told, 4 and 5 finish, 6 breaks, the submit of 7 raises
-        ("async", 3, 1),  # 0 and 2 finish, 1 breaks, the submit of 3 raises
+        (BrokenExecutor, BrokenExecutor, "broke at task {breaks_at} ", "failed",
+         "BrokenExecutor: "),
+        (KeyboardInterrupt, RunInterrupted, "interrupted with {stored} evaluations stored",
+         "interrupted", "stopped by the user (Ctrl-C or SIGTERM)"),
+    ],
+    ids=["broken", "ctrl-c"],
+)  # fmt: skip
+@pytest.mark.parametrize(
+    ("mode", "together", "breaks_at", "told"),
+    [
+        ("sync", 4, 6, 4),  # 4, 5 and 7 of the second batch finish, then 6 breaks the executor
+        ("sync", 1, 5, 4),  # 4 finishes, 5 breaks, the submit of 6 raises
+        ("async", 1, 6, 4),  # 0 to 3 are told, 4 and 5 finish, 6 breaks, the submit of 7 raises
+        ("async", 3, 1, 0),  # 0 and 2 finish, 1 breaks, the submit of 3 raises
     ],
 )
-def test_a_broken_executor_loses_no_evaluation_that_finished(tmp_path, mode, together, breaks_at):
-    """Every evaluation that finished before the executor broke for good (BrokenExecutor from
-    a future or from a later submit) is stored with the failed run, and its resume evaluates
-    none of them again; a sync run's resume ends row for row as the run that never broke."""
+def test_a_broken_or_interrupted_run_loses_no_evaluation_that_finished(
+    tmp_path, monkeypatch, fault, raised, says, status, message, mode, together, breaks_at, told
+):
+    """Every evaluation that finished before the executor broke for good or Ctrl-C stopped the
+    run (from a future or from a later submit) is stored, not told: the last checkpoint (one
+    after every tell) tells none of them; the resume evaluates none of them again and ends with
+    the whole budget, a sync run's row for row as the run never stopped."""
+    monkeypatch.setattr("metaopt.running.session.CHECKPOINT_INTERVAL", 0.0)
     plugins = registry()
     random, sphere = plugins.optimizer("random"), plugins.problem("sphere")
     spec = RunSpec("random", "sphere", 16, 3, optimizer_params={"batch_size": 4},
                    problem_params={"dim": 2}, settings=RunSettings(mode=mode))  # fmt: skip
     with RunStore(tmp_path / "runs.db") as store:
         whole = run(spec, random, sphere, store)
-        breaking = BreakingExecutor(4, breaks_at, together)
-        with pytest.raises(BrokenExecutor, match=f"broke at task {breaks_at} "):
+        breaking = BreakingExecutor(4, breaks_at, together, fault)
+        with pytest.raises(raised) as stop:
             run(spec, random, sphere, store, executor=breaking)
-        broken = store.runs()[-1]
-        assert broken.status == "failed" and broken.message.startswith("BrokenExecutor: ")
+        stopped = store.runs()[-1]
+        assert stopped.status == status and stopped.message.startswith(message)
         finished = sorted(task.index for task in breaking.evaluated)
         assert breaks_at not in finished and len(finished) >= 1
-        assert sorted(e.index for e in store.evaluations(broken.id)) == finished
+        assert sorted(e.index for e in store.evaluations(stopped.id)) == finished
+        assert says.format(breaks_at=breaks_at, stored=len(finished)) in str(stop.value)
+        checkpoint = stopped.checkpoint or {"told_below": 0, "told_extra": []}
+        assert (checkpoint["told_below"], checkpoint["told_extra"]) == (told, [])
         again = BreakingExecutor(4)
-        resumed = resume(broken.id, store, random, sphere, executor=again)
+        resumed = resume(stopped.id, store, random, sphere, executor=again)
         assert not {task.index for task in again.evaluated} & set(finished)
-        assert resumed.evaluations == len(finished) + len(again.evaluated)
+        assert resumed.evaluations == len(finished) + len(again.evaluated) == 16
+        assert store.run(stopped.id).status == "finished"
         if mode == "sync":
-            assert resumed.evaluations == 16
-            assert _stored(store, broken.id) == _stored(store, whole.run_id)
+            assert _stored(store, stopped.id) == _stored(store, whole.run_id)
+
+
+def test_a_second_ctrl_c_while_the_finished_are_stored_loses_the_rest_never_the_store(
+    tmp_path, monkeypatch
+):
+    """Ctrl-C again while the evaluations that finished (0 and 2) are being stored, 0 stored
+    already, loses 2 but not the store: the run is marked interrupted with 0 committed, and its
+    resume evaluates every other one, to the whole budget."""
+    plugins = registry()
+    random, sphere = plugins.optimizer("random"), plugins.problem("sphere")
+    spec = RunSpec("random", "sphere", 16, 3, problem_params={"dim": 2},
+                   settings=RunSettings(mode="async"))  # fmt: skip
+    with RunStore(tmp_path / "runs.db") as store:
+        add_evaluation = store.add_evaluation
+
+        def second_ctrl_c(run_id: int, index: int, *rest: object) -> None:
+            if index == 2:
+                raise KeyboardInterrupt
+            add_evaluation(run_id, index, *rest)
+
+        monkeypatch.setattr(store, "add_evaluation", second_ctrl_c)
+        stopping = BreakingExecutor(4, 1, 3, KeyboardInterrupt)  # 0 and 2 finish, 1 stops it
+        with pytest.raises(RunInterrupted):
+            run(spec, random, sphere, store, executor=stopping)
+        monkeypatch.undo()
+        (stopped,) = store.runs()
+        assert stopped.status == "interrupted"
+        assert [e.index for e in store.evaluations(stopped.id)] == [0]
+        again = BreakingExecutor(4)
+        resumed = resume(stopped.id, store, random, sphere, executor=again)
+        assert resumed.evaluations == 16
+        assert sorted(task.index for task in again.evaluated) == list(range(1, 16))
 
 
 class Fails(Problem):

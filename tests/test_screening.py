@@ -9,6 +9,7 @@ from click.testing import CliRunner
 
 from metaopt import ConfigError, Evaluation, Problem, ProblemInfo, Space
 from metaopt.cli import main
+from metaopt.errors import RunFailed
 from metaopt.executors.base import Executor
 from metaopt.plugins import registry
 from metaopt.reporting.convergence import run_convergence
@@ -140,33 +141,65 @@ def test_an_interrupted_screened_run_resumes_to_the_same_end(tmp_path):
 
 
 @pytest.mark.parametrize(
+    ("fault", "status"), [(BrokenExecutor, "failed"), (KeyboardInterrupt, "interrupted")]
+)
+@pytest.mark.parametrize(
     "together",
     [1, 3],  # 1: the first complete finishes, the second breaks, the third's submit raises;
     # 3: the first and third finish, the second breaks, the fourth's submit raises
 )
-def test_a_broken_executor_loses_no_complete_evaluation_that_finished(tmp_path, together):
-    """The complete evaluations that finished before the executor broke for good are stored
-    with the failed run; its resume screens the batch again (the order needs every bound) but
-    completes none of them again, and ends where the run that never broke does (though which
-    ranked-out candidates were started ahead of the cut may differ: reused ones take no worker)."""
+def test_a_broken_or_interrupted_run_loses_no_complete_evaluation_that_finished(
+    tmp_path, fault, status, together
+):
+    """The complete evaluations that finished before the executor broke for good or Ctrl-C
+    stopped the run are stored; its resume screens the batch again (the order needs every
+    bound) but completes none of them again, and ends where the run never stopped does (though
+    which ranked-out candidates were started ahead of the cut may differ: reused ones take no
+    worker)."""
     with RunStore(tmp_path / "runs.db") as store:
         whole = _run(store, TwoPartSphere(), screen=True, executor=BreakingExecutor(4))
-        breaking = BreakingExecutor(4, breaks_at=POPULATION + 1, together=together)
-        with pytest.raises(BrokenExecutor, match=f"broke at task {POPULATION + 1} "):
+        breaking = BreakingExecutor(4, POPULATION + 1, together, fault)
+        with pytest.raises(fault):
             _run(store, TwoPartSphere(), screen=True, executor=breaking)
-        broken = store.runs()[-1]
-        assert broken.status == "failed" and broken.message.startswith("BrokenExecutor: ")
+        stopped = store.runs()[-1]
+        assert stopped.status == status
         completed = sorted(t.index for t in breaking.evaluated if t.phase == "complete")
         assert len(completed) == (1 if together == 1 else 2)
-        assert sorted(e.index for e in store.evaluations(broken.id)) == completed
+        assert sorted(e.index for e in store.evaluations(stopped.id)) == completed
         again = BreakingExecutor(4)
         cmaes = registry().optimizer("cmaes")
-        resumed = resume(broken.id, store, cmaes, _info(TwoPartSphere()), executor=again)
+        resumed = resume(stopped.id, store, cmaes, _info(TwoPartSphere()), executor=again)
         assert not {t.index for t in again.evaluated if t.phase == "complete"} & set(completed)
         assert resumed.evaluations == whole.evaluations
         assert resumed.best_fitness == whole.best_fitness
-        assert (store.run(broken.id).checkpoint["state"]
+        assert (store.run(stopped.id).checkpoint["state"]
                 == store.run(whole.run_id).checkpoint["state"])  # fmt: skip
+
+
+class BeatsItsScreen(TwoPartSphere):
+    """A full fitness better than the screen's: the screen is no bound."""
+
+    def complete(self, x, seed, screened):
+        return Evaluation(screened.fitness - 1.0, {"part": 0.0})
+
+
+def test_a_complete_kept_as_ctrl_c_stopped_the_run_is_checked_against_its_bound_on_resume(
+    tmp_path,
+):
+    """Ctrl-C stores the completes that finished unchecked (the run stops at once); the resume
+    (its problem's later completes sound) fails on reusing one that beats its screen, as the
+    run would have on reading it."""
+    with RunStore(tmp_path / "runs.db") as store:
+        breaking = BreakingExecutor(4, POPULATION + 1, 3, KeyboardInterrupt)
+        with pytest.raises(KeyboardInterrupt):
+            _run(store, BeatsItsScreen(), screen=True, executor=breaking)
+        stopped = store.runs()[-1]
+        assert stopped.status == "interrupted"
+        assert [e.status for e in store.evaluations(stopped.id)] == ["ok", "ok"]
+        cmaes = registry().optimizer("cmaes")
+        with pytest.raises(RunFailed, match=r"is better than its screen's .* no bound"):
+            resume(stopped.id, store, cmaes, _info(TwoPartSphere()), executor=BreakingExecutor(4))
+        assert store.run(stopped.id).status == "failed"
 
 
 @pytest.mark.parametrize(

@@ -10,6 +10,7 @@ from collections.abc import Callable, Iterator
 from concurrent.futures import FIRST_COMPLETED, BrokenExecutor, Future, as_completed, wait
 from contextlib import contextmanager
 from dataclasses import dataclass, replace
+from functools import partial
 from itertools import chain, islice
 from typing import Any
 
@@ -87,8 +88,9 @@ class Session:
         self.told_extra: set[int] = set()  # candidates told beyond told_below (async)
         self.stored = self.failed = self.screened = 0
         self.first_error: str | None = None
-        #: the executor broke for good: the outcomes that finished are kept and the run fails
-        self.broken = False
+        #: the loop leaves on a break or an interrupt, storing every outcome that finished
+        #: (no all-failed stop cuts that short)
+        self.keeping = False
         self.best_score = math.inf
         target = self.settings.target
         #: the optimizer's (minimizing) score at which the run stops
@@ -225,13 +227,12 @@ class Session:
 
         def take(future: Future) -> None:
             """Store a finished outcome; its candidate, once complete, is told at once."""
-            candidate = in_flight.pop(future)
-            self._record(candidate, future.result())
+            candidate = self._keep(in_flight, future)
             if candidate.complete:
                 self._tell_one(candidate, progress)
 
         open_candidates = self._unfinished_candidates()
-        with self._keeping_finished(in_flight, take):
+        with self._keeping_finished(in_flight, partial(self._keep, in_flight)):
             for candidate in open_candidates:
                 if candidate.complete:
                     self._tell_one(candidate, progress)
@@ -247,7 +248,9 @@ class Session:
                     self._submit(executor, [candidate], in_flight)
                     number = next(numbers, None)
                 done, _ = wait(list(in_flight), return_when=FIRST_COMPLETED)
-                for future in done:
+                # as submitted, not in the set's order (by address): the same outcomes are told
+                # in the same order, and a break or an interrupt among them meets the same ones
+                for future in [f for f in in_flight if f in done]:
                     take(future)
 
     def _numbers_to_ask(self, open_numbers: set[int], started: int) -> Iterator[int]:
@@ -264,19 +267,28 @@ class Session:
 
     @contextmanager
     def _keeping_finished(
-        self, futures: dict[Future, Candidate], take: Callable[[Future], None]
+        self, futures: dict[Future, Candidate], keep: Callable[[Future], object]
     ) -> Iterator[None]:
-        """Where the executor breaks inside (BrokenExecutor), every future of ``futures`` not
-        yet taken that finished with an outcome is taken before the run fails: a fault loses
-        nothing that finished, and a resume reuses it instead of evaluating it again."""
+        """Where the executor breaks inside (BrokenExecutor) or Ctrl-C stops the run
+        (KeyboardInterrupt), every future of ``futures`` not yet taken that finished with an
+        outcome is stored (``keep``) before the run ends, and a resume reuses it instead of
+        evaluating it again. Stored only, neither told nor checkpointed (a resume tells it):
+        rows queued in memory, soon done; a second Ctrl-C that cuts it short loses rows, and
+        leaves the store's flush to run."""
         try:
             yield
-        except BrokenExecutor:
-            self.broken = True
+        except (BrokenExecutor, KeyboardInterrupt):
+            self.keeping = True
             for future in list(futures):
                 if future.done() and not future.cancelled() and future.exception() is None:
-                    take(future)
+                    keep(future)
             raise
+
+    def _keep(self, futures: dict[Future, Candidate], future: Future) -> Candidate:
+        """Store a finished future's outcome, taking it out of ``futures``; its candidate."""
+        candidate = futures.pop(future)
+        self._record(candidate, future.result())
+        return candidate
 
     def _ask(self, first: int, count: int) -> np.ndarray:
         """Candidates number first to first + count - 1: the warm start's points while they
@@ -381,14 +393,19 @@ class Session:
             """``selected`` decided candidates beat order[position]'s bound already."""
             return sum(score < bounds[position] for score in decided) >= selected
 
-        def finish(future: Future) -> None:
-            """Store a complete phase's outcome at once, its wall time counting the screen's."""
+        def keep(future: Future) -> Candidate:
+            """Store a complete phase's outcome, its wall time counting the screen's."""
             candidate = in_flight.pop(future)
             outcome = future.result()
             screen_time = screened[candidate.number].wall_time
             done[candidate.number] = replace(outcome, wall_time=outcome.wall_time + screen_time)
             self._record(candidate, done[candidate.number])
-            self._check_bound(candidate, screened[candidate.number], outcome)
+            return candidate
+
+        def finish(future: Future) -> None:
+            """Keep a complete phase's outcome at once; its screen must have been a bound."""
+            candidate = keep(future)
+            self._check_bound(candidate, screened[candidate.number], done[candidate.number])
 
         def decide() -> None:
             """Decide the candidates in order whose outcome is known; cut at the first that
@@ -404,14 +421,17 @@ class Session:
                 else:
                     break
 
-        with self._keeping_finished(in_flight, finish):
+        with self._keeping_finished(in_flight, keep):
             while len(decided) < cut:
                 while len(in_flight) < executor.workers and ahead < cut and not ranked_out(ahead):
                     candidate = order[ahead]
                     ahead += 1
-                    if candidate.number in reused:
+                    if candidate.number in reused:  # unchecked where a stop kept it: checked now
                         done[candidate.number] = candidate.outcomes[0] = reused[candidate.number]
                         self.stored += 1
+                        self._check_bound(
+                            candidate, screened[candidate.number], done[candidate.number]
+                        )
                         decide()
                         continue
                     screen = _evaluation_of(screened[candidate.number])
@@ -472,23 +492,17 @@ class Session:
         """Evaluate the candidates' missing samples, storing every outcome as soon as it
         completes (in-process ones without waiting)."""
         futures: dict[Future, Candidate] = {}
-
-        def take(future: Future) -> None:
-            """Store a finished outcome."""
-            candidate = futures.pop(future)
-            self._record(candidate, future.result())
-
-        with self._keeping_finished(futures, take):
+        with self._keeping_finished(futures, partial(self._keep, futures)):
             self._submit(executor, candidates, futures)
             waiting = []
             for future in list(futures):
                 if future.done():
-                    take(future)
+                    self._keep(futures, future)
                 else:
                     waiting.append(future)
             if waiting:  # as_completed costs a lock even with nothing to wait for
                 for future in as_completed(waiting):
-                    take(future)
+                    self._keep(futures, future)
 
     def _record(self, candidate: Candidate, outcome: Outcome) -> None:
         candidate.outcomes[outcome.index % self.resample] = outcome
@@ -502,7 +516,7 @@ class Session:
             outcome.screened,
         )  # fmt: skip
         all_failed = self.failed >= self.stored >= ALL_FAILED_STOP and self.stored < self.total
-        if all_failed and not self.broken:  # a broken run stops anyway, all it finished kept
+        if all_failed and not self.keeping:  # the run stops anyway, all it finished kept
             raise RunFailed(self._why_failed() + "; stopped early")
 
     def _why_failed(self) -> str:
