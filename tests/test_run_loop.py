@@ -12,6 +12,7 @@ from metaopt import ConfigError, Evaluation, Problem, ProblemInfo, Sense, Space
 from metaopt.errors import RunFailed
 from metaopt.plugins import registry
 from metaopt.running import RunInterrupted, RunSettings, RunSpec, resume, run
+from metaopt.seeding import EvaluationSeeds
 from metaopt.storage.run_store import EvaluationCounts, RunStore
 from tests.fixtures.breaking_executor import BreakingExecutor
 
@@ -340,7 +341,7 @@ def test_a_second_ctrl_c_while_the_finished_are_stored_loses_the_rest_never_the_
 ):
     """Ctrl-C again while the evaluations that finished (0 and 2) are being stored, 0 stored
     already, loses 2 but not the store: the run is marked interrupted with 0 committed, and its
-    resume evaluates every other one, to the whole budget."""
+    resume evaluates every other one, to the whole budget; the message counts the one."""
     plugins = registry()
     random, sphere = plugins.optimizer("random"), plugins.problem("sphere")
     spec = RunSpec("random", "sphere", 16, 3, problem_params={"dim": 2},
@@ -355,16 +356,44 @@ def test_a_second_ctrl_c_while_the_finished_are_stored_loses_the_rest_never_the_
 
         monkeypatch.setattr(store, "add_evaluation", second_ctrl_c)
         stopping = BreakingExecutor(4, 1, 3, KeyboardInterrupt)  # 0 and 2 finish, 1 stops it
-        with pytest.raises(RunInterrupted):
+        with pytest.raises(RunInterrupted) as stop:
             run(spec, random, sphere, store, executor=stopping)
         monkeypatch.undo()
         (stopped,) = store.runs()
         assert stopped.status == "interrupted"
         assert [e.index for e in store.evaluations(stopped.id)] == [0]
+        assert str(stop.value) == f"run {stopped.id} interrupted with 1 evaluations stored"
         again = BreakingExecutor(4)
         resumed = resume(stopped.id, store, random, sphere, executor=again)
         assert resumed.evaluations == 16
         assert sorted(task.index for task in again.evaluated) == list(range(1, 16))
+
+
+class ShutdownInterrupted(BreakingExecutor):
+    """Ctrl-C again as the executor shuts down (a pool may wait seconds for idle workers)."""
+
+    def shutdown(self) -> None:
+        raise KeyboardInterrupt
+
+
+def test_a_second_ctrl_c_while_the_executor_shuts_down_still_marks_and_commits_the_run(
+    tmp_path, monkeypatch
+):
+    """Ctrl-C (the second batch's 6) then Ctrl-C again in the executor's shutdown: the run is
+    still marked interrupted and every evaluation that finished is committed (by the run's own
+    flush: the store's flusher is put off here)."""
+    monkeypatch.setattr("metaopt.storage.run_store.FLUSH_INTERVAL", 3600.0)
+    plugins = registry()
+    spec = RunSpec("random", "sphere", 16, 3, optimizer_params={"batch_size": 4},
+                   problem_params={"dim": 2})  # fmt: skip
+    stopping = ShutdownInterrupted(4, 6, 4, KeyboardInterrupt)  # 4, 5 and 7 finish, 6 stops it
+    with RunStore(tmp_path / "runs.db") as store:
+        with pytest.raises(KeyboardInterrupt):
+            run(spec, plugins.optimizer("random"), plugins.problem("sphere"), store,
+                executor=stopping)  # fmt: skip
+        (stopped,) = store.runs()
+        assert stopped.status == "interrupted"
+        assert [e.index for e in store.evaluations(stopped.id)] == [0, 1, 2, 3, 4, 5, 7]
 
 
 class Fails(Problem):
@@ -389,6 +418,43 @@ def test_a_broken_executor_keeps_every_failure_that_finished_and_fails_as_broken
         (record,) = store.runs()
         assert record.status == "failed" and record.message.startswith("BrokenExecutor: ")
         assert store.evaluation_counts(record.id) == EvaluationCounts(11, 11, 0)
+
+
+class SucceedsOn(Problem):
+    """A 1-D problem whose evaluations all fail but those given one of ``seeds`` (chosen
+    evaluations: a seed is the run seed's and the index's alone)."""
+
+    def __init__(self, seeds: set[int]) -> None:
+        self.space = Space.from_bounds([-1.0], [1.0])
+        self.seeds = seeds
+
+    def evaluate(self, x: np.ndarray, seed: int) -> Evaluation:
+        if seed not in self.seeds:
+            raise ValueError("not a chosen evaluation")
+        return Evaluation(float(x[0] ** 2))
+
+
+@pytest.mark.parametrize("mode", ["sync", "async"])
+def test_the_all_failed_stop_keeps_the_other_evaluations_that_finished(tmp_path, mode):
+    """The first ten evaluations fail and the two after them, finished with them, succeed: the
+    run stops as all failed at the tenth yet stores all twelve, and its resume evaluates
+    neither success again."""
+    seeds = EvaluationSeeds(1)
+    info = ProblemInfo("chosen", "succeeds on 10 and 11",
+                       factory=lambda: SucceedsOn({seeds(10), seeds(11)}))  # fmt: skip
+    spec = RunSpec("random", "chosen", 24, 1, optimizer_params={"batch_size": 12},
+                   settings=RunSettings(mode=mode))  # fmt: skip
+    random = registry().optimizer("random")
+    with RunStore(tmp_path / "runs.db") as store:
+        with pytest.raises(RunFailed, match=r"all 10 evaluations failed.*stopped early"):
+            run(spec, random, info, store, executor=BreakingExecutor(12, together=12))
+        (record,) = store.runs()
+        assert record.status == "failed"
+        assert store.evaluation_counts(record.id) == EvaluationCounts(12, 10, 0)
+        again = BreakingExecutor(12, together=12)
+        resumed = resume(record.id, store, random, info, executor=again)
+        assert sorted(task.index for task in again.evaluated) == list(range(12, 24))
+        assert (resumed.evaluations, resumed.failed) == (24, 22)
 
 
 @pytest.mark.parametrize("checkpoints", [math.inf, 0.0], ids=["no-checkpoint", "every-tell"])

@@ -144,36 +144,50 @@ def test_an_interrupted_screened_run_resumes_to_the_same_end(tmp_path):
     ("fault", "status"), [(BrokenExecutor, "failed"), (KeyboardInterrupt, "interrupted")]
 )
 @pytest.mark.parametrize(
-    "together",
-    [1, 3],  # 1: the first complete finishes, the second breaks, the third's submit raises;
-    # 3: the first and third finish, the second breaks, the fourth's submit raises
+    ("together", "breaks_at", "completes", "stored_whole"),
+    [
+        # the first complete finishes, the second breaks, the third's submit raises
+        (1, POPULATION + 1, 1, False),
+        # the first and third finish, the second breaks, the fourth's submit raises
+        (3, POPULATION + 1, 2, False),
+        # all 16 of the first batch finish (two started ahead of its cut), the first screen of
+        # the next breaks: the first batch is stored whole, not told
+        (1, POPULATION + 16, 16, True),
+    ],
 )
 def test_a_broken_or_interrupted_run_loses_no_complete_evaluation_that_finished(
-    tmp_path, fault, status, together
+    tmp_path, fault, status, together, breaks_at, completes, stored_whole
 ):
     """The complete evaluations that finished before the executor broke for good or Ctrl-C
     stopped the run are stored; its resume screens the batch again (the order needs every
-    bound) but completes none of them again, and ends where the run never stopped does (though
-    which ranked-out candidates were started ahead of the cut may differ: reused ones take no
-    worker)."""
+    bound) but completes none of them again, keeps every row stored (one completed ahead of
+    the cut too), and ends where the run never stopped does. Which ranked-out candidates were
+    started ahead of the cut may differ (reused ones take no worker), unless the batch was
+    stored whole: then every row is the unstopped run's."""
     with RunStore(tmp_path / "runs.db") as store:
         whole = _run(store, TwoPartSphere(), screen=True, executor=BreakingExecutor(4))
-        breaking = BreakingExecutor(4, POPULATION + 1, together, fault)
+        breaking = BreakingExecutor(4, breaks_at, together, fault)
         with pytest.raises(fault):
             _run(store, TwoPartSphere(), screen=True, executor=breaking)
         stopped = store.runs()[-1]
         assert stopped.status == status
         completed = sorted(t.index for t in breaking.evaluated if t.phase == "complete")
-        assert len(completed) == (1 if together == 1 else 2)
-        assert sorted(e.index for e in store.evaluations(stopped.id)) == completed
+        assert len(completed) == completes
+        kept = {e.index: (e.status, e.fitness) for e in store.evaluations(stopped.id)}
+        assert sorted(i for i, (state, _) in kept.items() if state != "screened") == completed
         again = BreakingExecutor(4)
         cmaes = registry().optimizer("cmaes")
         resumed = resume(stopped.id, store, cmaes, _info(TwoPartSphere()), executor=again)
         assert not {t.index for t in again.evaluated if t.phase == "complete"} & set(completed)
+        rows = {e.index: (e.status, e.fitness) for e in store.evaluations(stopped.id)}
+        assert {index: rows[index] for index in kept} == kept
         assert resumed.evaluations == whole.evaluations
         assert resumed.best_fitness == whole.best_fitness
         assert (store.run(stopped.id).checkpoint["state"]
                 == store.run(whole.run_id).checkpoint["state"])  # fmt: skip
+        if stored_whole:
+            assert rows == {e.index: (e.status, e.fitness) for e in store.evaluations(whole.run_id)}
+            assert resumed.screened == whole.screened
 
 
 class BeatsItsScreen(TwoPartSphere):

@@ -172,13 +172,15 @@ class Session:
             message = f"{type(error).__name__}: {error}"
             raise
         finally:
-            executor.shutdown()
-            # A checkpoint is only ever taken right after a tell: an interrupted run keeps its
-            # last one, and the evaluations stored since are reused when it is resumed.
-            final = (self.run_id, self._checkpoint()) if status == "finished" else None
-            self.store.flush(checkpoint=final)
-            wall_time = time.perf_counter() - started  # one figure: the stored and the reported
-            self.store.finish_run(self.run_id, status, wall_time, message)
+            try:
+                executor.shutdown()
+            finally:  # a second Ctrl-C as the workers stop (seconds) still marks the run
+                # A checkpoint is only ever taken right after a tell: an interrupted run keeps
+                # its last one, and the evaluations stored since are reused when it is resumed.
+                final = (self.run_id, self._checkpoint()) if status == "finished" else None
+                self.store.flush(checkpoint=final)
+                wall_time = time.perf_counter() - started  # the stored and the reported
+                self.store.finish_run(self.run_id, status, wall_time, message)
         return self._result(status, wall_time)
 
     def _warn_of_waiting_workers(self, batch: int, workers: int) -> None:
@@ -215,7 +217,7 @@ class Session:
             if self.settings.screen:
                 self._screen_and_complete(executor, candidates)
             else:
-                self._collect(executor, candidates)
+                self._evaluate(executor, candidates)
             scores = np.array([self._score(c) for c in candidates])
             self.optimizer.tell(np.array([c.x for c in candidates]), scores)
             next_index += count * self.resample
@@ -269,15 +271,16 @@ class Session:
     def _keeping_finished(
         self, futures: dict[Future, Candidate], keep: Callable[[Future], object]
     ) -> Iterator[None]:
-        """Where the executor breaks inside (BrokenExecutor) or Ctrl-C stops the run
-        (KeyboardInterrupt), every future of ``futures`` not yet taken that finished with an
-        outcome is stored (``keep``) before the run ends, and a resume reuses it instead of
-        evaluating it again. Stored only, neither told nor checkpointed (a resume tells it):
-        rows queued in memory, soon done; a second Ctrl-C that cuts it short loses rows, and
-        leaves the store's flush to run."""
+        """Where the executor breaks inside (BrokenExecutor), Ctrl-C stops the run
+        (KeyboardInterrupt) or the run fails (RunFailed: all failed so far, a screen no bound),
+        every future of ``futures`` not yet taken that finished with an outcome is stored
+        (``keep``) before the run ends, and a resume reuses it instead of evaluating it again.
+        Stored only, neither told nor checkpointed (a resume tells it): rows queued in memory,
+        soon done; a second Ctrl-C that cuts it short loses rows, and leaves the store's flush
+        to run."""
         try:
             yield
-        except (BrokenExecutor, KeyboardInterrupt):
+        except (BrokenExecutor, KeyboardInterrupt, RunFailed):
             self.keeping = True
             for future in list(futures):
                 if future.done() and not future.cancelled() and future.exception() is None:
@@ -407,6 +410,13 @@ class Session:
             candidate = keep(future)
             self._check_bound(candidate, screened[candidate.number], done[candidate.number])
 
+        def reuse(candidate: Candidate) -> None:
+            """Take a complete stored before a stop, checked against its bound now (a stop
+            kept it unchecked)."""
+            done[candidate.number] = candidate.outcomes[0] = reused[candidate.number]
+            self.stored += 1
+            self._check_bound(candidate, screened[candidate.number], done[candidate.number])
+
         def decide() -> None:
             """Decide the candidates in order whose outcome is known; cut at the first that
             is ranked out. Called after every outcome, so that no complete starts on stale
@@ -426,12 +436,8 @@ class Session:
                 while len(in_flight) < executor.workers and ahead < cut and not ranked_out(ahead):
                     candidate = order[ahead]
                     ahead += 1
-                    if candidate.number in reused:  # unchecked where a stop kept it: checked now
-                        done[candidate.number] = candidate.outcomes[0] = reused[candidate.number]
-                        self.stored += 1
-                        self._check_bound(
-                            candidate, screened[candidate.number], done[candidate.number]
-                        )
+                    if candidate.number in reused:
+                        reuse(candidate)
                         decide()
                         continue
                     screen = _evaluation_of(screened[candidate.number])
@@ -446,10 +452,14 @@ class Session:
                     decide()
             for future in as_completed(list(in_flight)):  # started ahead of the cut: kept
                 finish(future)
-        for candidate in order[cut:]:
+        for candidate in order[cut:]:  # told their bound; a stored complete stays complete
             screen = screened[candidate.number]
             candidate.bound = screen.fitness
-            if candidate.number not in done:
+            if candidate.number in done:
+                continue
+            if candidate.number in reused:
+                reuse(candidate)
+            else:
                 bound = {**screen.metrics, SCREEN_BOUND: screen.fitness}
                 self._record(candidate, replace(screen, screened=True, fitness=None, metrics=bound))
 
@@ -488,9 +498,9 @@ class Session:
         """The (minimizing) score of a completed outcome: +inf where it failed."""
         return math.inf if outcome.fitness is None else self.sign * outcome.fitness
 
-    def _collect(self, executor: Executor, candidates: list[Candidate]) -> None:
-        """Evaluate the candidates' missing samples, storing every outcome as soon as it
-        completes (in-process ones without waiting)."""
+    def _evaluate(self, executor: Executor, candidates: list[Candidate]) -> None:
+        """Submit the candidates' missing samples and collect their outcomes, storing each as
+        soon as it completes (in-process ones without waiting)."""
         futures: dict[Future, Candidate] = {}
         with self._keeping_finished(futures, partial(self._keep, futures)):
             self._submit(executor, candidates, futures)
@@ -505,16 +515,18 @@ class Session:
                     self._keep(futures, future)
 
     def _record(self, candidate: Candidate, outcome: Outcome) -> None:
-        candidate.outcomes[outcome.index % self.resample] = outcome
-        self.stored += 1
-        self.failed += outcome.error is not None
-        self.screened += outcome.screened
-        self.first_error = self.first_error or outcome.error
+        """Store an outcome, then count it: the counts are never ahead of the rows (a second
+        Ctrl-C may stop the store)."""
         self.store.add_evaluation(
             self.run_id, outcome.index, candidate.number, candidate.x, outcome.fitness,
             outcome.metrics, outcome.error, self.seeds(outcome.index), outcome.wall_time,
             outcome.screened,
         )  # fmt: skip
+        candidate.outcomes[outcome.index % self.resample] = outcome
+        self.stored += 1
+        self.failed += outcome.error is not None
+        self.screened += outcome.screened
+        self.first_error = self.first_error or outcome.error
         all_failed = self.failed >= self.stored >= ALL_FAILED_STOP and self.stored < self.total
         if all_failed and not self.keeping:  # the run stops anyway, all it finished kept
             raise RunFailed(self._why_failed() + "; stopped early")
