@@ -24,6 +24,7 @@ import pytest
 
 from metaopt import Evaluation, Problem, Space
 from metaopt.executors.base import EvaluationTask
+from metaopt.executors.dask_cluster import PREFETCH
 from metaopt.params import resolve
 from metaopt.plugins import registry
 from metaopt.running import RunSettings, RunSpec, run
@@ -578,6 +579,20 @@ def _wait_until_all_busy(executor) -> None:
         time.sleep(0.05)
 
 
+def _waiting_thread(future: concurrent.futures.Future, returned: list) -> threading.Thread:
+    """A thread blocked in concurrent.futures.wait() on the future, which appends what wait()
+    returns to returned once woken: started, and blocked, when this returns."""
+    waiter = threading.Thread(
+        target=lambda: returned.append(concurrent.futures.wait([future])), daemon=True
+    )
+    waiter.start()
+    deadline = time.monotonic() + 30
+    while not future._waiters:  # blocked in wait(), not about to begin
+        assert time.monotonic() < deadline, "the caller never began to wait"
+        time.sleep(0.01)
+    return waiter
+
+
 def test_shutdown_cancels_unsettled_tasks_and_a_later_submit_raises():
     """Shutting down cancels every unsettled task, the one waiting and the one running (its
     worker is stopped, its outcome will never come), so no caller waits for ever; a submit
@@ -625,19 +640,33 @@ def test_shutdown_wakes_a_caller_blocked_in_wait_on_a_task_it_cancels():
     try:
         running, _ = (executor.submit(task) for task in _sleeping_tasks(2))
         _wait_until_all_busy(executor)
-        waiter = threading.Thread(
-            target=lambda: returned.append(concurrent.futures.wait([running])), daemon=True
-        )
-        waiter.start()
-        deadline = time.monotonic() + 30
-        while not running._waiters:  # blocked in wait() before shutdown cancels the task
-            assert time.monotonic() < deadline, "the caller never began to wait"
-            time.sleep(0.01)
+        waiter = _waiting_thread(running, returned)  # blocked before shutdown cancels the task
     finally:
         executor.shutdown()
     waiter.join(timeout=30)
     assert not waiter.is_alive(), "wait() was never woken"
     assert returned == [({running}, set())] and running.cancelled()
+
+
+def test_a_caller_blocked_in_wait_on_a_task_its_caller_cancels_is_woken_at_once():
+    """A thread blocked in concurrent.futures.wait() on a task its caller then cancels, one
+    waiting in line or one running, returns at once, with no shutdown: the pool passed a
+    cancelled task over (or dropped its outcome) without notifying it, so wait() blocked for
+    ever, here behind a worker busy for a minute."""
+    executor = registry().executor("process").factory(1, None)
+    try:
+        running, queued = (executor.submit(task) for task in _sleeping_tasks(2))
+        _wait_until_all_busy(executor)
+        returned: dict[concurrent.futures.Future, list] = {running: [], queued: []}
+        waiters = [_waiting_thread(future, returned[future]) for future in returned]
+        assert queued.cancel() and running.cancel()
+        deadline = time.monotonic() + 5
+        for waiter in waiters:
+            waiter.join(timeout=max(0.0, deadline - time.monotonic()))
+        assert not any(waiter.is_alive() for waiter in waiters), "wait() was not woken"
+        assert returned == {running: [({running}, set())], queued: [({queued}, set())]}
+    finally:
+        executor.shutdown()
 
 
 def test_an_interrupt_mid_shutdown_still_stops_every_worker_and_cancels_every_task():
@@ -673,6 +702,42 @@ def test_an_interrupt_mid_shutdown_still_stops_every_worker_and_cancels_every_ta
             worker.process.is_alive()  # killed, joined, and its Process closed
     gc.collect()
     assert set(os.listdir("/dev/fd")) <= descriptors  # none opened and left open
+
+
+def test_dask_shutdown_cancels_every_unsettled_task_and_wakes_its_waiters():
+    """Shutting the Dask executor down cancels every unsettled task, one waiting here and one
+    handed to Dask alike, and a caller blocked in concurrent.futures.wait() on either returns:
+    a bare cancel() left the waiting one CANCELLED, never notified, so wait() blocked for ever,
+    and one handed to Dask was not cancelled at all (the client's close cut its attempt short,
+    which queued it again, for a dispatcher that had stopped)."""
+    executor = registry().executor("dask").factory(1, None)
+    try:
+        futures = [executor.submit(task) for task in _sleeping_tasks(PREFETCH + 1)]
+        deadline = time.monotonic() + 60
+        while executor._running < PREFETCH:  # the first ones handed over, the last waits here
+            assert time.monotonic() < deadline, "the tasks were never handed to Dask"
+            time.sleep(0.05)
+        handed, waiting = futures[0], futures[-1]
+        returned: dict[concurrent.futures.Future, list] = {handed: [], waiting: []}
+        waiters = [_waiting_thread(future, returned[future]) for future in returned]
+    finally:
+        executor.shutdown()
+    deadline = time.monotonic() + 30
+    for waiter in waiters:
+        waiter.join(timeout=max(0.0, deadline - time.monotonic()))
+    assert not any(waiter.is_alive() for waiter in waiters), "wait() was never woken"
+    assert returned == {handed: [({handed}, set())], waiting: [({waiting}, set())]}
+    assert all(future.cancelled() for future in futures)
+
+
+def test_a_submit_to_a_dask_executor_shut_down_raises():
+    """A submit after shutdown raises RuntimeError, as the Executor contract says, instead of
+    queuing a task no dispatcher hands over, its future never settling."""
+    executor = registry().executor("dask").factory(1, None)
+    executor.shutdown()
+    (later,) = _sphere_tasks(1, time_limit=None)
+    with pytest.raises(RuntimeError, match="cannot submit after shutdown"):
+        executor.submit(later)
 
 
 class _UnpicklableMetric(Problem):

@@ -154,7 +154,8 @@ class ProcessExecutor(Executor):
         a broken pool (its manager thread failed) raises BrokenExecutor, and a pool shut down
         raises RuntimeError (as concurrent.futures does): its task would never run. Cancelling
         the future does not stop a running task: the pool never marks futures running, so the
-        cancel of an unsettled one always succeeds, and its worker's outcome is dropped."""
+        cancel of an unsettled one always succeeds, and its worker's outcome is dropped; a
+        caller blocked in wait() or as_completed() on it is woken at once."""
         future: Future = Future()
         try:
             payload = ForkingPickler.dumps(task)
@@ -175,9 +176,15 @@ class ProcessExecutor(Executor):
         return future
 
     def _forget(self, future: Future) -> None:
-        """Drop a settled future from those a failure of the manager thread fails."""
+        """Drop a settled future from those a failure of the manager thread fails, and wake
+        the wait()ers of a cancelled one: cancel() alone leaves it CANCELLED, never notified,
+        so wait() and as_completed() would block on it for ever. As its done callback, this
+        runs once, in the thread whose cancel (its caller's, or shutdown's) succeeded first,
+        at once, not when the manager reaches it: the one place it is notified."""
         with self._lock:
             self._unsettled.discard(future)
+        if future.cancelled():
+            future.set_running_or_notify_cancel()
 
     def _manage(self) -> None:
         """The manager thread: serve until shut down. An error of its own (a replacement
@@ -335,8 +342,7 @@ class ProcessExecutor(Executor):
             with self._lock:
                 unsettled = list(self._unsettled)
             for future in unsettled:
-                if future.cancel():  # it succeeds (never marked running); wake its waiters
-                    future.set_running_or_notify_cancel()
+                future.cancel()  # it succeeds (never marked running); _forget wakes its waiters
             self._manager.join()  # already ended, or about to: it stops at its next poll
             for worker in self._pool:
                 worker.kill()  # only one still running is killed; each pipe and process is closed
