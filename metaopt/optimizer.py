@@ -12,6 +12,7 @@ import numpy as np
 
 from metaopt.params import Param
 from metaopt.space import Space
+from metaopt.storage.run_store import MAX_STORED_INT
 
 
 class Optimizer(ABC):
@@ -112,8 +113,8 @@ def population_param(name: str, default: int, help: str, low: int = 1) -> Param:
 
 
 #: The most evaluations a run's budget or an optimizer's ``budget`` parameter takes: the run
-#: store keeps 64-bit integers (SQLite), and a budget past them is a slip no run would spend.
-MAX_BUDGET = 2**63 - 1
+#: store keeps no larger integer, and a budget past it is a slip no run would spend.
+MAX_BUDGET = MAX_STORED_INT
 
 
 def budget_param(default: int = 10000) -> Param:

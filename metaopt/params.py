@@ -132,7 +132,7 @@ def _exact_int(text: str) -> int:
     return int(number)
 
 
-def _fmt(number: float) -> str:
+def _fmt(number: float | int) -> str:
     """A bound, compact ('1e+06'), or exact where compact would round it (2**63 - 1 read as
     9.22337e+18 would name a bound that is not the one checked)."""
     compact = f"{number:g}"

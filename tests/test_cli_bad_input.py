@@ -531,7 +531,7 @@ def test_a_budget_past_64_bits_is_refused_in_one_line_however_given(
     """--set budget= had no upper bound where --budget has MAX_INT64: a budget of 10**30 ran
     (its schedules spanning it), and an experiment's overflowed the store in a traceback. Now
     --budget, --set budget= and an experiment's budget share one bound, refused before any
-    run."""
+    run, each refusal writing it in the same digits."""
     monkeypatch.chdir(tmp_path)
     base = ["run", "-o", optimizer, "-p", "sphere", "--set", "dim=2"]
     for budget in (str(10**30), "1e30", str(MAX_INT64 + 1)):
@@ -546,7 +546,7 @@ def test_a_budget_past_64_bits_is_refused_in_one_line_however_given(
     )
     result = CliRunner().invoke(main, ["compare", "big.toml"])
     _one_line(result, "big.toml", f"budget must be a positive number of evaluations, at most "
-              f"{MAX_INT64:,}", f"got {10**30}")  # fmt: skip
+              f"{MAX_INT64} ", f"got {10**30}")  # fmt: skip
     assert [path.name for path in tmp_path.iterdir()] == ["big.toml"]
 
 

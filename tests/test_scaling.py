@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import builtins
 import concurrent.futures
 import errno
 import gc
@@ -23,6 +24,7 @@ import pytest
 
 from metaopt import Evaluation, Problem, Space
 from metaopt.executors.base import EvaluationTask
+from metaopt.executors.dask_cluster import PREFETCH
 from metaopt.params import resolve
 from metaopt.plugins import registry
 from metaopt.running import RunSettings, RunSpec, run
@@ -577,6 +579,20 @@ def _wait_until_all_busy(executor) -> None:
         time.sleep(0.05)
 
 
+def _waiting_thread(future: concurrent.futures.Future, returned: list) -> threading.Thread:
+    """A thread blocked in concurrent.futures.wait() on the future, which appends what wait()
+    returns to returned once woken: started, and blocked, when this returns."""
+    waiter = threading.Thread(
+        target=lambda: returned.append(concurrent.futures.wait([future])), daemon=True
+    )
+    waiter.start()
+    deadline = time.monotonic() + 30
+    while not future._waiters:  # blocked in wait(), not about to begin
+        assert time.monotonic() < deadline, "the caller never began to wait"
+        time.sleep(0.01)
+    return waiter
+
+
 def test_shutdown_cancels_unsettled_tasks_and_a_later_submit_raises():
     """Shutting down cancels every unsettled task, the one waiting and the one running (its
     worker is stopped, its outcome will never come), so no caller waits for ever; a submit
@@ -615,6 +631,115 @@ def test_shutdown_stops_busy_workers_at_once_not_one_wait_each():
             process.is_alive()
 
 
+def test_shutdown_wakes_a_caller_blocked_in_wait_on_a_task_it_cancels():
+    """A caller blocked in concurrent.futures.wait() on a running task returns once shutdown
+    cancels it, the task done and cancelled: a bare cancel() left the future CANCELLED, never
+    notified, and wait() blocked for ever."""
+    executor = registry().executor("process").factory(1, None)
+    returned: list[tuple[set, set]] = []
+    try:
+        running, _ = (executor.submit(task) for task in _sleeping_tasks(2))
+        _wait_until_all_busy(executor)
+        waiter = _waiting_thread(running, returned)  # blocked before shutdown cancels the task
+    finally:
+        executor.shutdown()
+    waiter.join(timeout=30)
+    assert not waiter.is_alive(), "wait() was never woken"
+    assert returned == [({running}, set())] and running.cancelled()
+
+
+def test_a_caller_blocked_in_wait_on_a_task_its_caller_cancels_is_woken_at_once():
+    """A thread blocked in concurrent.futures.wait() on a task its caller then cancels, one
+    waiting in line or one running, returns at once, with no shutdown: the pool passed a
+    cancelled task over (or dropped its outcome) without notifying it, so wait() blocked for
+    ever, here behind a worker busy for a minute."""
+    executor = registry().executor("process").factory(1, None)
+    try:
+        running, queued = (executor.submit(task) for task in _sleeping_tasks(2))
+        _wait_until_all_busy(executor)
+        returned: dict[concurrent.futures.Future, list] = {running: [], queued: []}
+        waiters = [_waiting_thread(future, returned[future]) for future in returned]
+        assert queued.cancel() and running.cancel()
+        deadline = time.monotonic() + 5
+        for waiter in waiters:
+            waiter.join(timeout=max(0.0, deadline - time.monotonic()))
+        assert not any(waiter.is_alive() for waiter in waiters), "wait() was not woken"
+        assert returned == {running: [({running}, set())], queued: [({queued}, set())]}
+    finally:
+        executor.shutdown()
+
+
+def test_an_interrupt_mid_shutdown_still_stops_every_worker_and_cancels_every_task():
+    """A second Ctrl-C as shutdown waits for the first worker to end still leaves every worker
+    killed, every pipe and Process closed, no descriptor open and every task cancelled (it cut
+    the teardown short: the other workers ran on, their callers waiting for ever)."""
+    resource_tracker.ensure_running()  # the first spawned process starts it, open for good
+    gc.collect()  # an earlier test's garbage closing its descriptors meanwhile would mislead
+    descriptors = set(os.listdir("/dev/fd"))
+    executor = registry().executor("process").factory(2, None)
+    workers = list(executor._pool)
+    pipes = [executor._wake_reader, executor._wake_writer]
+    pipes += [worker.connection for worker in workers]
+    futures = [executor.submit(task) for task in _sleeping_tasks(3)]
+    _wait_until_all_busy(executor)
+    first, join = workers[0].process, workers[0].process.join
+    joins: list[float | None] = []
+
+    def interrupted_once(timeout: float | None = None) -> None:
+        joins.append(timeout)
+        if len(joins) == 1:
+            raise KeyboardInterrupt
+        join(timeout)
+
+    first.join = interrupted_once
+    with pytest.raises(KeyboardInterrupt):
+        executor.shutdown()
+    assert len(joins) == 2  # interrupted, then joined again as it was killed
+    assert all(future.cancelled() for future in futures)
+    assert len(pipes) == 4 and all(pipe.closed for pipe in pipes)
+    for worker in workers:
+        with pytest.raises(ValueError, match="closed"):
+            worker.process.is_alive()  # killed, joined, and its Process closed
+    gc.collect()
+    assert set(os.listdir("/dev/fd")) <= descriptors  # none opened and left open
+
+
+def test_dask_shutdown_cancels_every_unsettled_task_and_wakes_its_waiters():
+    """Shutting the Dask executor down cancels every unsettled task, one waiting here and one
+    handed to Dask alike, and a caller blocked in concurrent.futures.wait() on either returns:
+    a bare cancel() left the waiting one CANCELLED, never notified, so wait() blocked for ever,
+    and one handed to Dask was not cancelled at all (the client's close cut its attempt short,
+    which queued it again, for a dispatcher that had stopped)."""
+    executor = registry().executor("dask").factory(1, None)
+    try:
+        futures = [executor.submit(task) for task in _sleeping_tasks(PREFETCH + 1)]
+        deadline = time.monotonic() + 60
+        while executor._running < PREFETCH:  # the first ones handed over, the last waits here
+            assert time.monotonic() < deadline, "the tasks were never handed to Dask"
+            time.sleep(0.05)
+        handed, waiting = futures[0], futures[-1]
+        returned: dict[concurrent.futures.Future, list] = {handed: [], waiting: []}
+        waiters = [_waiting_thread(future, returned[future]) for future in returned]
+    finally:
+        executor.shutdown()
+    deadline = time.monotonic() + 30
+    for waiter in waiters:
+        waiter.join(timeout=max(0.0, deadline - time.monotonic()))
+    assert not any(waiter.is_alive() for waiter in waiters), "wait() was never woken"
+    assert returned == {handed: [({handed}, set())], waiting: [({waiting}, set())]}
+    assert all(future.cancelled() for future in futures)
+
+
+def test_a_submit_to_a_dask_executor_shut_down_raises():
+    """A submit after shutdown raises RuntimeError, as the Executor contract says, instead of
+    queuing a task no dispatcher hands over, its future never settling."""
+    executor = registry().executor("dask").factory(1, None)
+    executor.shutdown()
+    (later,) = _sphere_tasks(1, time_limit=None)
+    with pytest.raises(RuntimeError, match="cannot submit after shutdown"):
+        executor.submit(later)
+
+
 class _UnpicklableMetric(Problem):
     """A 2-D problem whose evaluation returns a metric that refuses to be pickled."""
 
@@ -643,45 +768,72 @@ def test_an_outcome_that_does_not_pickle_fails_alone_and_the_worker_serves_on():
         executor.shutdown()
 
 
-def _refuse_unpickling() -> None:
-    """What a _RefusesUnpickling's pickle calls when loaded: it raises."""
-    raise ValueError("a _RefusesUnpickling refuses to be unpickled")
+def _refuse_unpickling(error: str) -> None:
+    """What a _RefusesUnpickling's pickle calls when loaded: it raises the built-in error."""
+    raise getattr(builtins, error)("a _RefusesUnpickling refuses to be unpickled")
 
 
 class _RefusesUnpickling:
     """A metric value that pickles in the worker but raises when the parent unpickles it."""
 
+    def __init__(self, error: str) -> None:
+        self.error = error
+
     def __reduce__(self) -> tuple:
-        return _refuse_unpickling, ()
+        return _refuse_unpickling, (self.error,)
 
 
 class _UnreadableMetric(Problem):
     """A 2-D problem whose evaluation returns a metric that pickles but cannot be unpickled."""
 
-    def __init__(self) -> None:
+    def __init__(self, error: str) -> None:
         self.space = Space.from_bounds([-1.0, -1.0], [1.0, 1.0])
+        self.error = error
 
     def evaluate(self, x, seed):
-        return Evaluation(0.0, {"odd": _RefusesUnpickling()})
+        return Evaluation(0.0, {"odd": _RefusesUnpickling(self.error)})
 
 
-def test_an_outcome_that_does_not_unpickle_fails_alone_and_the_worker_serves_on():
+@pytest.mark.parametrize("error", ["ValueError", "SystemExit"])
+def test_an_outcome_that_does_not_unpickle_fails_alone_and_the_worker_serves_on(error):
     """An outcome that the worker sends but the parent cannot unpickle fails its task alone,
     saying why in one line, with its index and wall time, instead of breaking the pool (the
-    load raised in the manager thread: every task failed with BrokenExecutor); the same worker,
-    alive and idle, serves the rest."""
+    load raised in the manager thread: every task failed with BrokenExecutor), nor, where the
+    load raised SystemExit, ending the manager thread silently (every caller waited for ever);
+    the same worker, alive and idle, serves the rest."""
     executor = registry().executor("process").factory(1, None)
     try:
         (worker,) = [worker.process for worker in executor._pool]
-        odd = EvaluationTask(5, np.zeros(2), 0, _UnreadableMetric, {})
+        odd = EvaluationTask(5, np.zeros(2), 0, _UnreadableMetric, {"error": error})
         tasks = [odd, *_sphere_tasks(2, time_limit=None)]
         outcomes = [executor.submit(task).result(timeout=60) for task in tasks]
         assert outcomes[0].index == 5 and outcomes[0].fitness is None
-        refused = "ValueError: a _RefusesUnpickling refuses to be unpickled"
+        refused = f"{error}: a _RefusesUnpickling refuses to be unpickled"
         assert outcomes[0].error == f"the outcome could not be read back: {refused}"
         assert outcomes[0].wall_time > 0  # from the start of its timed evaluation
         assert [outcome.error for outcome in outcomes[1:]] == [None, None]
         assert executor._broken is None
         assert executor._pool[0].process is worker and worker.is_alive()  # never replaced
+    finally:
+        executor.shutdown()
+
+
+def test_a_manager_thread_ended_by_system_exit_breaks_the_pool(monkeypatch):
+    """A BaseException that is no Exception (SystemExit) ending the manager thread breaks the
+    pool as any error does, so a submit raises BrokenExecutor naming it (the thread ended
+    silently, and every task submitted waited for ever)."""
+    from metaopt.executors import process_pool
+
+    def exits(executor: process_pool.ProcessExecutor) -> None:
+        raise SystemExit("told to exit")
+
+    monkeypatch.setattr(process_pool.ProcessExecutor, "_serve", exits)
+    executor = registry().executor("process").factory(1, None)
+    try:
+        executor._manager.join(timeout=30)
+        (task,) = _sphere_tasks(1, time_limit=None)
+        broken = "its manager thread failed with SystemExit: told to exit"
+        with pytest.raises(concurrent.futures.BrokenExecutor, match=broken):
+            executor.submit(task)
     finally:
         executor.shutdown()

@@ -18,7 +18,6 @@ from metaopt.assessment.candidates import find_start
 from metaopt.assessment.replay import find_source, replay_candidate, replay_seeds
 from metaopt.cli.common import (
     BUDGET,
-    MAX_INT64,
     build_executor,
     check_executor_options,
     check_store_path,
@@ -63,7 +62,7 @@ from metaopt.settings import parse_problem_settings, split_settings
 from metaopt.space import Space
 from metaopt.storage.experiment_store import experiment_names
 from metaopt.storage.export import FORMATS, export_run
-from metaopt.storage.run_store import RunStore
+from metaopt.storage.run_store import MAX_STORED_INT, RunStore
 from metaopt.storage.whole_file import written_whole
 
 #: what `run --max-time` and `resume --max-time` accept: seconds of wall time, above 0
@@ -171,7 +170,7 @@ def list_plugins(name: str | None) -> None:
 )
 @click.option(
     "--seed",
-    type=click.IntRange(min=0, max=MAX_INT64),
+    type=click.IntRange(min=0, max=MAX_STORED_INT),
     default=None,
     help="Run seed [random, printed].",
 )
@@ -454,7 +453,7 @@ def _window_option(flag: str, help: str):
     """A click option counting evaluations in a window (at least 1, 100 by default)."""
     return click.option(
         flag,
-        type=click.IntRange(min=1, max=MAX_INT64),
+        type=click.IntRange(min=1, max=MAX_STORED_INT),
         default=DEFAULT_WINDOW,
         show_default=True,
         metavar="N",
@@ -554,8 +553,8 @@ def export_command(run_id: str, fmt: str, output: Path | None, db_path: str) -> 
 @output_file_option("--video", "video", "Also film the candidate into this MP4 file.", ".mp4")
 @click.option("--seeds", type=click.IntRange(min=1), default=None,
               help="Re-evaluate with this many fresh seeds: median, IQR, fall rate.")  # fmt: skip
-@click.option("--seed", type=click.IntRange(min=0, max=MAX_INT64), default=0, show_default=True,
-              help="With --seeds: draws the evaluation seeds.")  # fmt: skip
+@click.option("--seed", type=click.IntRange(min=0, max=MAX_STORED_INT), default=0,
+              show_default=True, help="With --seeds: draws the evaluation seeds.")  # fmt: skip
 @scheduling_options
 @db_option
 def replay_command(

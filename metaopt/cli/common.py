@@ -29,8 +29,6 @@ SCHEDULER_ADDRESS = re.compile(r"((tcp|tls|ucx|inproc)://)?[^\s/:]+(:\d+)?")
 
 #: More local workers than this is a typing slip, not a machine.
 MAX_WORKERS = 1024
-#: The largest seed or count of evaluations (a window, --at): SQLite stores integers of 64 bits.
-MAX_INT64 = 2**63 - 1
 #: what every --budget accepts: a whole number of evaluations, as the budget parameter does
 BUDGET = click.IntRange(min=1, max=MAX_BUDGET)
 

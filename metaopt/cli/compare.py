@@ -11,7 +11,6 @@ from rich.console import Console
 
 from metaopt.cli.common import (
     BUDGET,
-    MAX_INT64,
     build_executor,
     check_executor_options,
     console,
@@ -38,6 +37,7 @@ from metaopt.reporting.result_table import ResultTable
 from metaopt.running import RunInterrupted
 from metaopt.storage.experiment_store import ExperimentStore
 from metaopt.storage.export import dump_json
+from metaopt.storage.run_store import MAX_STORED_INT
 from metaopt.storage.whole_file import written_whole
 
 DEFAULT_SEEDS = 5
@@ -112,7 +112,7 @@ MAX_SEEDS = 10_000
 )
 @click.option(
     "--at",
-    type=click.IntRange(min=1, max=MAX_INT64),
+    type=click.IntRange(min=1, max=MAX_STORED_INT),
     default=None,
     metavar="N",
     help="Also each cell's best fitness within its first N evaluations: cells of different "

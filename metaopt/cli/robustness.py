@@ -13,7 +13,6 @@ import click
 from metaopt.assessment import goal_ranking, robustness, search_medians
 from metaopt.assessment.candidates import Candidate, find_candidates
 from metaopt.cli.common import (
-    MAX_INT64,
     build_executor,
     console,
     db_option,
@@ -28,6 +27,7 @@ from metaopt.problem import ProblemInfo, Sense
 from metaopt.reporting import display
 from metaopt.reporting.plain import plain
 from metaopt.settings import parse_problem_settings
+from metaopt.storage.run_store import MAX_STORED_INT
 
 
 @click.command("robustness")
@@ -59,7 +59,7 @@ from metaopt.settings import parse_problem_settings
 )
 @click.option(
     "--seed",
-    type=click.IntRange(min=0, max=MAX_INT64),
+    type=click.IntRange(min=0, max=MAX_STORED_INT),
     default=0,
     show_default=True,
     help="Draws the evaluation seeds (the same ones in every cell).",

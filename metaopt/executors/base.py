@@ -198,7 +198,8 @@ class Executor(ABC):
         """Start a task; the Future's result is its Outcome, a failed one included. Only an
         executor broken for good fails it with concurrent.futures.BrokenExecutor instead (and
         raises it from later submits), which ends the run as failed rather than leave it
-        waiting."""
+        waiting; and one shut down, where the task would never run, raises RuntimeError (as
+        concurrent.futures does) rather than return a future that never settles."""
 
     def shutdown(self) -> None:  # noqa: B027 - nothing to free for in-process executors
         """Stop workers; unfinished tasks are abandoned."""

@@ -6,17 +6,19 @@ itself does not retry, ``allowed-failures`` 0), then stored as failed. At most a
 per live worker thread are handed to Dask at a time (the rest wait here), so a worker that
 dies takes down little besides the task it was running, and that is retried. A time limit
 on Dask abandons the
-evaluation (its result is ignored); the worker finishes it anyway.
+evaluation (its result is ignored); the worker finishes it anyway. Shutdown cancels every
+unsettled task, waiting here or handed to Dask, and a later submit raises RuntimeError.
 """
 
 from __future__ import annotations
 
 import collections
+import contextlib
 import importlib.util
 import math
 import threading
 import time
-from concurrent.futures import Future
+from concurrent.futures import Future, InvalidStateError
 from typing import TYPE_CHECKING
 
 from metaopt.errors import ConfigError
@@ -70,6 +72,8 @@ class DaskExecutor(Executor):
         self._timers: dict[str, threading.Timer] = {}
         self._changed = threading.Condition()
         self._waiting: collections.deque[tuple[EvaluationTask, Future, int]] = collections.deque()
+        #: every future submitted and not yet settled, waiting here or handed to Dask
+        self._unsettled: set[Future] = set()
         self._running = 0
         self._last_loss = -math.inf
         self._closing = False
@@ -83,11 +87,22 @@ class DaskExecutor(Executor):
         return PREFETCH * self.workers
 
     def submit(self, task: EvaluationTask) -> Future:
+        """Queue the task for the dispatcher to hand to Dask; an executor shut down raises
+        RuntimeError (as concurrent.futures does): no dispatcher would hand its task over."""
         result: Future = Future()
-        with self._changed:
+        with self._changed:  # held by shutdown as it stops: no task is queued after it
+            if self._closing:
+                raise RuntimeError("cannot submit after shutdown")
+            self._unsettled.add(result)
+            result.add_done_callback(self._forget)
             self._waiting.append((task, result, 1))
             self._changed.notify()
         return result
+
+    def _forget(self, result: Future) -> None:
+        """Drop a settled future from those shutdown cancels."""
+        with self._changed:
+            self._unsettled.discard(result)
 
     def _hand_over(self) -> None:
         """Give Dask waiting tasks while fewer than PREFETCH per worker are there (running or
@@ -150,8 +165,7 @@ class DaskExecutor(Executor):
             with self._changed:
                 self._running -= 1
                 self._changed.notify()
-            if not result.done():
-                result.set_result(outcome)
+            _settle(result, outcome)
 
         dask_future.add_done_callback(settle)
 
@@ -171,13 +185,16 @@ class DaskExecutor(Executor):
             self._timers.pop(key, None)
         if not result.done():
             reason = f"EvaluationTimeout: exceeded the time limit of {task.time_limit:g} s"
-            result.set_result(Outcome(task.index, None, error=reason, wall_time=task.time_limit))
+            _settle(result, Outcome(task.index, None, error=reason, wall_time=task.time_limit))
             dask_future.cancel()
 
     def shutdown(self) -> None:
-        """Stop handing tasks over, cancel the time-limit timers and what waits, and close the
-        client and the cluster started here; a second call (the run's, then its caller's)
-        does nothing."""
+        """Stop handing tasks over, cancel the time-limit timers and every unsettled task,
+        what waits here and what Dask has (the client's close abandons it: its result will
+        never come), so its caller gets CancelledError, and one blocked in wait() or
+        as_completed() is woken; close the client and the cluster started here. A later
+        submit raises RuntimeError; a second call (the run's, then its caller's) does
+        nothing."""
         with self._changed:
             if self._closing:
                 return
@@ -186,10 +203,21 @@ class DaskExecutor(Executor):
         self._dispatcher.join()
         with self._changed:
             timers, self._timers = list(self._timers.values()), {}
+            unsettled = list(self._unsettled)
+            self._waiting.clear()
         for timer in timers:
             timer.cancel()
-        for _, result, _ in self._waiting:
-            result.cancel()
+        for result in unsettled:
+            # it succeeds unless it settled meanwhile (never marked running): wake its waiters
+            if result.cancel():
+                result.set_running_or_notify_cancel()
         self._client.close()
         if self._cluster is not None:
             self._cluster.close()
+
+
+def _settle(result: Future, outcome: Outcome) -> None:
+    """Give a task's future its outcome, unless it settled meanwhile: its time limit passed,
+    or shutdown cancelled it, as the outcome came (a settled future refuses a result)."""
+    with contextlib.suppress(InvalidStateError):
+        result.set_result(outcome)

@@ -63,7 +63,7 @@ def _worker_main(connection: Connection) -> None:
         release_problems()
 
 
-def _outcome_payload(task: EvaluationTask, outcome: Outcome) -> bytes:
+def _outcome_payload(task: EvaluationTask, outcome: Outcome) -> memoryview:
     """The outcome pickled for the pipe, or, where it does not pickle (a metric that refuses),
     the task's failure saying so: the task fails alone and the worker lives on."""
     try:
@@ -152,7 +152,10 @@ class ProcessExecutor(Executor):
     def submit(self, task: EvaluationTask) -> Future:
         """Queue the task for the next free worker; one that does not pickle fails at once,
         a broken pool (its manager thread failed) raises BrokenExecutor, and a pool shut down
-        raises RuntimeError (as concurrent.futures does): its task would never run."""
+        raises RuntimeError (as concurrent.futures does): its task would never run. Cancelling
+        the future does not stop a running task: the pool never marks futures running, so the
+        cancel of an unsettled one always succeeds, and its worker's outcome is dropped; a
+        caller blocked in wait() or as_completed() on it is woken at once."""
         future: Future = Future()
         try:
             payload = ForkingPickler.dumps(task)
@@ -173,19 +176,26 @@ class ProcessExecutor(Executor):
         return future
 
     def _forget(self, future: Future) -> None:
-        """Drop a settled future from those a failure of the manager thread fails."""
+        """Drop a settled future from those a failure of the manager thread fails, and wake
+        the wait()ers of a cancelled one: cancel() alone leaves it CANCELLED, never notified,
+        so wait() and as_completed() would block on it for ever. As its done callback, this
+        runs once, in the thread whose cancel (its caller's, or shutdown's) succeeded first,
+        at once, not when the manager reaches it: the one place it is notified."""
         with self._lock:
             self._unsettled.discard(future)
+        if future.cancelled():
+            future.set_running_or_notify_cancel()
 
     def _manage(self) -> None:
         """The manager thread: serve until shut down. An error of its own (a replacement
-        worker that cannot start, a bug) breaks the pool rather than leave tasks waiting."""
+        worker that cannot start, a bug), a SystemExit too, breaks the pool rather than end
+        the thread silently and leave tasks waiting."""
         try:
             self._serve()
-        except Exception as error:
+        except BaseException as error:
             self._break(error)
 
-    def _break(self, error: Exception) -> None:
+    def _break(self, error: BaseException) -> None:
         """Fail every unsettled task, and every later submit, with BrokenExecutor naming the
         error; the workers are left for shutdown to stop."""
         broken = BrokenExecutor(
@@ -263,7 +273,7 @@ class ProcessExecutor(Executor):
         worker.answered = True
         try:
             outcome = ForkingPickler.loads(payload)
-        except Exception as error:  # any error a load may raise, EOFError too: not the pipe's
+        except BaseException as error:  # a load's (EOFError, SystemExit too): not the pipe's
             job, worker.job = worker.job, None
             reason = f"the outcome could not be read back: {type(error).__name__}: {error}"
             # its wall time as the parent saw it: from the start of the timed evaluation
@@ -316,14 +326,32 @@ class ProcessExecutor(Executor):
         no longer with more busy workers; close every pipe, so no descriptor outlives the pool.
         Every unsettled task is cancelled: what waits, as concurrent.futures' shutdown with
         cancel_futures does, and what ran too, since its worker is stopped and its outcome will
-        never come (its caller gets CancelledError, never waits for ever). A later submit
-        raises RuntimeError; a second call (the run's, then its caller's) does nothing."""
+        never come (its caller gets CancelledError; one blocked in wait() or as_completed() is
+        woken). An interrupt mid-way (a second Ctrl-C) still kills every worker and cancels
+        every task. A later submit raises RuntimeError; a second call (the run's, then its
+        caller's) does nothing."""
         with self._lock:
             if self._stopping:
                 return
             self._stopping = True
-        self._wake_writer.send_bytes(b"")
-        self._manager.join()
+        try:
+            self._wake_writer.send_bytes(b"")
+            self._manager.join()
+            self._let_workers_end()
+        finally:
+            with self._lock:
+                unsettled = list(self._unsettled)
+            for future in unsettled:
+                future.cancel()  # it succeeds (never marked running); _forget wakes its waiters
+            self._manager.join()  # already ended, or about to: it stops at its next poll
+            for worker in self._pool:
+                worker.kill()  # only one still running is killed; each pipe and process is closed
+            self._wake_reader.close()
+            self._wake_writer.close()
+
+    def _let_workers_end(self) -> None:
+        """Tell each idle worker to stop (it closes its problems) and terminate each busy one,
+        then wait for them together: an idle one up to IDLE_GRACE, a busy one TERMINATE_GRACE."""
         now = time.monotonic()
         deadlines = []
         for worker in self._pool:
@@ -336,13 +364,6 @@ class ProcessExecutor(Executor):
                 deadlines.append(now + TERMINATE_GRACE)
         for worker, deadline in zip(self._pool, deadlines, strict=True):
             worker.process.join(timeout=max(0.0, deadline - time.monotonic()))
-            worker.kill()  # only one still running is killed; every pipe and process is closed
-        with self._lock:
-            unsettled = list(self._unsettled)
-        for future in unsettled:
-            future.cancel()
-        self._wake_reader.close()
-        self._wake_writer.close()
 
 
 def _settle(future: Future, outcome: Outcome) -> None:

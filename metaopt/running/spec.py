@@ -95,7 +95,7 @@ class RunSettings:
         """ConfigError naming the bad setting, or a budget outside 1 to MAX_BUDGET."""
         if not 1 <= budget <= MAX_BUDGET:
             raise ConfigError(
-                f"budget must be a positive number of evaluations, at most {MAX_BUDGET:,} (a "
+                f"budget must be a positive number of evaluations, at most {MAX_BUDGET} (a "
                 f"run store keeps 64-bit integers), got {budget}"
             )
         if self.mode not in MODES:

@@ -31,6 +31,9 @@ FLUSH_INTERVAL = 0.5
 #: Seconds a write waits for another connection's write lock before it fails.
 BUSY_TIMEOUT = 30.0
 DEFAULT_DB = "metaopt.db"
+#: The largest integer the store keeps (SQLite's are signed 64-bit): the bound of every run id,
+#: seed and budget, and of the command-line options that name one.
+MAX_STORED_INT = 2**63 - 1
 #: A store that lives in memory, for runs that are not kept (SQLite's own name for one).
 IN_MEMORY = ":memory:"
 #: A running run's owner renews its claim this often (seconds) ...
@@ -536,7 +539,7 @@ class RunStore:
             run_id = int(run_id)
         except ValueError:
             raise StoreError(f"run id must be a number, got {run_id!r}") from None
-        if not 0 < run_id < 2**63:
+        if not 0 < run_id <= MAX_STORED_INT:
             raise StoreError(
                 f"run id must be a positive number (as `metaopt runs` lists), got {run_id}"
             )
