@@ -12,7 +12,7 @@ import numpy as np
 
 from metaopt.params import Param
 from metaopt.space import Space
-from metaopt.storage.run_store import MAX_STORED_INT
+from metaopt.storage.limits import MAX_STORED_INT
 
 
 class Optimizer(ABC):

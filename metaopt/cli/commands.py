@@ -62,7 +62,8 @@ from metaopt.settings import parse_problem_settings, split_settings
 from metaopt.space import Space
 from metaopt.storage.experiment_store import experiment_names
 from metaopt.storage.export import FORMATS, export_run
-from metaopt.storage.run_store import MAX_STORED_INT, RunStore
+from metaopt.storage.limits import MAX_STORED_INT
+from metaopt.storage.run_store import RunStore
 from metaopt.storage.whole_file import written_whole
 
 #: what `run --max-time` and `resume --max-time` accept: seconds of wall time, above 0

@@ -37,7 +37,7 @@ from metaopt.reporting.result_table import ResultTable
 from metaopt.running import RunInterrupted
 from metaopt.storage.experiment_store import ExperimentStore
 from metaopt.storage.export import dump_json
-from metaopt.storage.run_store import MAX_STORED_INT
+from metaopt.storage.limits import MAX_STORED_INT
 from metaopt.storage.whole_file import written_whole
 
 DEFAULT_SEEDS = 5

@@ -27,7 +27,7 @@ from metaopt.problem import ProblemInfo, Sense
 from metaopt.reporting import display
 from metaopt.reporting.plain import plain
 from metaopt.settings import parse_problem_settings
-from metaopt.storage.run_store import MAX_STORED_INT
+from metaopt.storage.limits import MAX_STORED_INT
 
 
 @click.command("robustness")

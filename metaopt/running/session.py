@@ -174,6 +174,11 @@ class Session:
         finally:
             try:
                 executor.shutdown()
+            except KeyboardInterrupt:
+                # Ctrl-C again here: the RunInterrupted under way (its run id and count, the
+                # CLI's resume line) carries on, not this bare one.
+                if status != "interrupted":
+                    raise
             finally:  # a second Ctrl-C as the workers stop (seconds) still marks the run
                 # A checkpoint is only ever taken right after a tell: an interrupted run keeps
                 # its last one, and the evaluations stored since are reused when it is resumed.

@@ -24,6 +24,7 @@ import numpy as np
 
 from metaopt.errors import StoreError
 from metaopt.resampling import aggregate_fitness, aggregate_metrics
+from metaopt.storage.limits import MAX_STORED_INT
 
 FORMAT_NAME = "metaopt-run-store"
 SCHEMA_VERSION = 1
@@ -31,9 +32,6 @@ FLUSH_INTERVAL = 0.5
 #: Seconds a write waits for another connection's write lock before it fails.
 BUSY_TIMEOUT = 30.0
 DEFAULT_DB = "metaopt.db"
-#: The largest integer the store keeps (SQLite's are signed 64-bit): the bound of every run id,
-#: seed and budget, and of the command-line options that name one.
-MAX_STORED_INT = 2**63 - 1
 #: A store that lives in memory, for runs that are not kept (SQLite's own name for one).
 IN_MEMORY = ":memory:"
 #: A running run's owner renews its claim this often (seconds) ...
