@@ -648,19 +648,28 @@ def test_shutdown_wakes_a_caller_blocked_in_wait_on_a_task_it_cancels():
     assert returned == [({running}, set())] and running.cancelled()
 
 
-def test_a_caller_blocked_in_wait_on_a_task_its_caller_cancels_is_woken_at_once():
+@pytest.mark.parametrize("executor_name", ["process", "dask"])
+def test_a_caller_blocked_in_wait_on_a_task_its_caller_cancels_is_woken_at_once(executor_name):
     """A thread blocked in concurrent.futures.wait() on a task its caller then cancels, one
-    waiting in line or one running, returns at once, with no shutdown: the pool passed a
-    cancelled task over (or dropped its outcome) without notifying it, so wait() blocked for
-    ever, here behind a worker busy for a minute."""
-    executor = registry().executor("process").factory(1, None)
+    waiting in line or one running (handed to Dask), returns at once, with no shutdown: the
+    executor passed a cancelled task over (or dropped its outcome) without notifying it, so
+    wait() blocked for ever, here behind a worker busy for a minute."""
+    executor = registry().executor(executor_name).factory(1, None)
     try:
-        running, queued = (executor.submit(task) for task in _sleeping_tasks(2))
-        _wait_until_all_busy(executor)
+        if executor_name == "process":
+            running, queued = (executor.submit(task) for task in _sleeping_tasks(2))
+            _wait_until_all_busy(executor)
+        else:  # the first PREFETCH are handed to Dask, the last waits here
+            futures = [executor.submit(task) for task in _sleeping_tasks(PREFETCH + 1)]
+            deadline = time.monotonic() + 60
+            while executor._running < PREFETCH:
+                assert time.monotonic() < deadline, "the tasks were never handed to Dask"
+                time.sleep(0.05)
+            running, queued = futures[0], futures[-1]
         returned: dict[concurrent.futures.Future, list] = {running: [], queued: []}
         waiters = [_waiting_thread(future, returned[future]) for future in returned]
         assert queued.cancel() and running.cancel()
-        deadline = time.monotonic() + 5
+        deadline = time.monotonic() + 30  # generous: a loaded 2-core machine
         for waiter in waiters:
             waiter.join(timeout=max(0.0, deadline - time.monotonic()))
         assert not any(waiter.is_alive() for waiter in waiters), "wait() was not woken"
@@ -709,7 +718,9 @@ def test_dask_shutdown_cancels_every_unsettled_task_and_wakes_its_waiters():
     handed to Dask alike, and a caller blocked in concurrent.futures.wait() on either returns:
     a bare cancel() left the waiting one CANCELLED, never notified, so wait() blocked for ever,
     and one handed to Dask was not cancelled at all (the client's close cut its attempt short,
-    which queued it again, for a dispatcher that had stopped)."""
+    which queued it again, for a dispatcher that had stopped). A later submit raises
+    RuntimeError, as the Executor contract says, instead of queuing a task no dispatcher hands
+    over, its future never settling."""
     executor = registry().executor("dask").factory(1, None)
     try:
         futures = [executor.submit(task) for task in _sleeping_tasks(PREFETCH + 1)]
@@ -728,14 +739,7 @@ def test_dask_shutdown_cancels_every_unsettled_task_and_wakes_its_waiters():
     assert not any(waiter.is_alive() for waiter in waiters), "wait() was never woken"
     assert returned == {handed: [({handed}, set())], waiting: [({waiting}, set())]}
     assert all(future.cancelled() for future in futures)
-
-
-def test_a_submit_to_a_dask_executor_shut_down_raises():
-    """A submit after shutdown raises RuntimeError, as the Executor contract says, instead of
-    queuing a task no dispatcher hands over, its future never settling."""
-    executor = registry().executor("dask").factory(1, None)
-    executor.shutdown()
-    (later,) = _sphere_tasks(1, time_limit=None)
+    (later,) = _sphere_tasks(1, time_limit=None)  # no dispatcher would hand it over
     with pytest.raises(RuntimeError, match="cannot submit after shutdown"):
         executor.submit(later)
 

@@ -15,8 +15,8 @@ import signal
 import time
 from abc import ABC, abstractmethod
 from collections.abc import Callable, Iterator
-from concurrent.futures import Future
-from contextlib import contextmanager
+from concurrent.futures import Future, InvalidStateError
+from contextlib import contextmanager, suppress
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -66,6 +66,14 @@ class Outcome:
 #: The metric a screened evaluation stores its bound in (the fitness its full evaluation could
 #: not have bettered).
 SCREEN_BOUND = "screen_bound"
+
+
+def settle(future: Future, outcome: Outcome) -> None:
+    """Give a task's future its outcome, unless it settled meanwhile: its caller or shutdown
+    cancelled it, or its time limit passed, as the outcome came (a settled future refuses a
+    result, and one caller's cancel must not stop the executor)."""
+    with suppress(InvalidStateError):
+        future.set_result(outcome)
 
 
 class EvaluationTimeout(Exception):

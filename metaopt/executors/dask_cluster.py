@@ -13,16 +13,15 @@ unsettled task, waiting here or handed to Dask, and a later submit raises Runtim
 from __future__ import annotations
 
 import collections
-import contextlib
 import importlib.util
 import math
 import threading
 import time
-from concurrent.futures import Future, InvalidStateError
+from concurrent.futures import Future
 from typing import TYPE_CHECKING
 
 from metaopt.errors import ConfigError
-from metaopt.executors.base import EvaluationTask, Executor, Outcome, evaluate_task
+from metaopt.executors.base import EvaluationTask, Executor, Outcome, evaluate_task, settle
 
 if TYPE_CHECKING:
     import distributed
@@ -100,13 +99,20 @@ class DaskExecutor(Executor):
         return result
 
     def _forget(self, result: Future) -> None:
-        """Drop a settled future from those shutdown cancels."""
+        """Drop a settled future from those shutdown cancels, and wake the wait()ers of a
+        cancelled one: cancel() alone leaves it CANCELLED, never notified, so wait() and
+        as_completed() would block on it for ever. As its done callback, this runs once, in
+        the thread whose cancel (its caller's, or shutdown's) succeeded first: the one place
+        it is notified."""
         with self._changed:
             self._unsettled.discard(result)
+        if result.cancelled():
+            result.set_running_or_notify_cancel()
 
     def _hand_over(self) -> None:
         """Give Dask waiting tasks while fewer than PREFETCH per worker are there (running or
-        queued on a worker), so each worker has its next task at hand."""
+        queued on a worker), so each worker has its next task at hand; one its caller
+        cancelled is passed over."""
         while True:
             with self._changed:
                 while not self._closing and (
@@ -119,6 +125,8 @@ class DaskExecutor(Executor):
                     self._changed.wait(0.05)  # a worker is being replaced: wait for it
                     continue
                 task, result, attempt = self._waiting.popleft()
+                if result.cancelled():
+                    continue
                 self._running += 1
             self._start(task, result, attempt)
 
@@ -139,7 +147,7 @@ class DaskExecutor(Executor):
         # keeps the keys apart, since the cluster hands back a finished key's result.
         key = f"metaopt-{task.phase}-{task.index}-{task.seed}-{attempt}"
         dask_future = self._client.submit(evaluate_task, task, key=key, pure=False)
-        if task.time_limit is not None:  # before settle can run, so that it finds the timer
+        if task.time_limit is not None:  # before on_done can run, so that it finds the timer
             timer = threading.Timer(
                 task.time_limit, self._abandon, (key, task, result, dask_future)
             )
@@ -148,7 +156,7 @@ class DaskExecutor(Executor):
                 self._timers[key] = timer
             timer.start()
 
-        def settle(done) -> None:
+        def on_done(done) -> None:
             self._stop_timer(key)  # this attempt is over: its time limit no longer applies
             try:
                 outcome = done.result()
@@ -165,9 +173,9 @@ class DaskExecutor(Executor):
             with self._changed:
                 self._running -= 1
                 self._changed.notify()
-            _settle(result, outcome)
+            settle(result, outcome)
 
-        dask_future.add_done_callback(settle)
+        dask_future.add_done_callback(on_done)
 
     def _stop_timer(self, key: str) -> None:
         """Cancel and forget the time-limit timer of the task with this Dask key, if any."""
@@ -185,7 +193,7 @@ class DaskExecutor(Executor):
             self._timers.pop(key, None)
         if not result.done():
             reason = f"EvaluationTimeout: exceeded the time limit of {task.time_limit:g} s"
-            _settle(result, Outcome(task.index, None, error=reason, wall_time=task.time_limit))
+            settle(result, Outcome(task.index, None, error=reason, wall_time=task.time_limit))
             dask_future.cancel()
 
     def shutdown(self) -> None:
@@ -194,30 +202,26 @@ class DaskExecutor(Executor):
         never come), so its caller gets CancelledError, and one blocked in wait() or
         as_completed() is woken; close the client and the cluster started here. A later
         submit raises RuntimeError; a second call (the run's, then its caller's) does
-        nothing."""
+        nothing. An interrupt mid-way (a second Ctrl-C) still cancels every task and closes
+        the client and the cluster."""
         with self._changed:
             if self._closing:
                 return
             self._closing = True
             self._changed.notify()
-        self._dispatcher.join()
-        with self._changed:
-            timers, self._timers = list(self._timers.values()), {}
-            unsettled = list(self._unsettled)
-            self._waiting.clear()
-        for timer in timers:
-            timer.cancel()
-        for result in unsettled:
-            # it succeeds unless it settled meanwhile (never marked running): wake its waiters
-            if result.cancel():
-                result.set_running_or_notify_cancel()
-        self._client.close()
-        if self._cluster is not None:
-            self._cluster.close()
-
-
-def _settle(result: Future, outcome: Outcome) -> None:
-    """Give a task's future its outcome, unless it settled meanwhile: its time limit passed,
-    or shutdown cancelled it, as the outcome came (a settled future refuses a result)."""
-    with contextlib.suppress(InvalidStateError):
-        result.set_result(outcome)
+        try:
+            self._dispatcher.join()
+        finally:
+            with self._changed:
+                timers, self._timers = list(self._timers.values()), {}
+                unsettled = list(self._unsettled)
+                self._waiting.clear()
+            for timer in timers:
+                timer.cancel()
+            for result in unsettled:
+                result.cancel()  # it succeeds (never marked running); _forget wakes its waiters
+            try:
+                self._client.close()
+            finally:
+                if self._cluster is not None:
+                    self._cluster.close()

@@ -31,6 +31,7 @@ from metaopt.executors.base import (
     evaluate_task,
     prepared_problem,
     release_problems,
+    settle,
 )
 
 #: How often the manager thread looks at the clock when nothing else happens (time limits).
@@ -278,13 +279,13 @@ class ProcessExecutor(Executor):
             reason = f"the outcome could not be read back: {type(error).__name__}: {error}"
             # its wall time as the parent saw it: from the start of the timed evaluation
             wall = 0.0 if worker.started is None else time.monotonic() - worker.started
-            _settle(job.future, Outcome(job.task.index, None, error=reason, wall_time=wall))
+            settle(job.future, Outcome(job.task.index, None, error=reason, wall_time=wall))
             return
         if outcome == STARTED:
             worker.started = time.monotonic()
             return
         job, worker.job = worker.job, None
-        _settle(job.future, outcome)
+        settle(job.future, outcome)
         if outcome.timed_out:  # stopped mid-evaluation, maybe mid-import: start afresh
             self._renew(worker)
 
@@ -308,7 +309,7 @@ class ProcessExecutor(Executor):
                 self._queue.appendleft(replace(job, attempt=2))
             return
         reason = f"worker process died twice on this candidate (exit code {code})"
-        _settle(job.future, Outcome(job.task.index, None, error=reason))
+        settle(job.future, Outcome(job.task.index, None, error=reason))
 
     def _enforce_time_limit(self, worker: _Worker) -> None:
         job = worker.job
@@ -317,7 +318,7 @@ class ProcessExecutor(Executor):
             return
         worker.job = None
         reason = f"EvaluationTimeout: exceeded the time limit of {limit:g} s (worker stopped)"
-        _settle(job.future, Outcome(job.task.index, None, error=reason, wall_time=limit))
+        settle(job.future, Outcome(job.task.index, None, error=reason, wall_time=limit))
         self._renew(worker)
 
     def shutdown(self) -> None:
@@ -364,13 +365,6 @@ class ProcessExecutor(Executor):
                 deadlines.append(now + TERMINATE_GRACE)
         for worker, deadline in zip(self._pool, deadlines, strict=True):
             worker.process.join(timeout=max(0.0, deadline - time.monotonic()))
-
-
-def _settle(future: Future, outcome: Outcome) -> None:
-    """Give a job's future its outcome, unless its caller cancelled it meanwhile (a cancelled
-    future refuses a result, and one caller's cancel must not stop the pool)."""
-    with contextlib.suppress(InvalidStateError):
-        future.set_result(outcome)
 
 
 def _unpicklable(error: Exception) -> str:
