@@ -190,6 +190,44 @@ def test_a_broken_or_interrupted_run_loses_no_complete_evaluation_that_finished(
             assert resumed.screened == whole.screened
 
 
+class FailsScreens(TwoPartSphere):
+    """The screen fails for candidates far out in the first coordinate (a few of each
+    batch); resumed with a plain TwoPartSphere, the failures were flaky: screened well."""
+
+    def screen(self, x, seed):
+        if x[0] > 0.5:
+            raise ValueError("a screen that fails (a fault injected by a test)")
+        return super().screen(x, seed)
+
+
+@pytest.mark.parametrize("flaky", [False, True])
+def test_a_resumed_batch_counts_a_failed_screen_once_and_never_completes_with_it(tmp_path, flaky):
+    """A failed screen stored before Ctrl-C stopped the batch is screened again on resume:
+    it is counted failed once (as in the run never stopped), and where the screen now
+    succeeds, the stored failure is no complete result of the candidate."""
+    with RunStore(tmp_path / "runs.db") as store:
+        whole = _run(store, FailsScreens(), screen=True, executor=BreakingExecutor(4))
+        breaking = BreakingExecutor(4, POPULATION + 1, 1, KeyboardInterrupt)
+        with pytest.raises(KeyboardInterrupt):
+            _run(store, FailsScreens(), screen=True, executor=breaking)
+        stopped = store.runs()[-1]
+        failed = [e.index for e in store.evaluations(stopped.id) if e.status == "failed"]
+        assert failed and max(failed) < POPULATION  # failed screens of the stopped batch
+        again = BreakingExecutor(4)
+        problem = TwoPartSphere() if flaky else FailsScreens()
+        cmaes = registry().optimizer("cmaes")
+        resumed = resume(stopped.id, store, cmaes, _info(problem), executor=again)
+        rows = {e.index: e for e in store.evaluations(stopped.id)}
+        assert resumed.failed == sum(e.status == "failed" for e in rows.values())
+        assert resumed.evaluations == whole.evaluations == len(rows)
+        if flaky:  # every screen succeeds now: each candidate completed or told its bound
+            assert resumed.failed == 0
+            assert all(rows[i].status in ("ok", "screened") for i in failed)
+        else:
+            assert resumed.failed == whole.failed > 0
+            assert resumed.best_fitness == whole.best_fitness
+
+
 class BeatsItsScreen(TwoPartSphere):
     """A full fitness better than the screen's: the screen is no bound."""
 

@@ -128,9 +128,18 @@ class Session:
                 self._score(Candidate(number, evaluations[0].x, outcomes))
             elif not self._was_told(number):
                 self.reusable.update((e.index, e) for e in evaluations)
-        self.stored -= len(self.reusable)  # counted again when reused
-        # a resumed batch is screened again (_reused_complete): its screens are counted then
-        self.screened -= sum(e.status == "screened" for e in self.reusable.values())
+        # counted again when reused (_count_reused) or evaluated again (_record); a resumed
+        # batch is screened again (_reused_complete): its screens are counted then
+        for evaluation in self.reusable.values():
+            self.stored -= 1
+            self.failed -= evaluation.status == "failed"
+            self.screened -= evaluation.status == "screened"
+
+    def _count_reused(self, outcome: Outcome) -> None:
+        """Count a stored outcome taken on resume (restore left it out of the counts)."""
+        self.stored += 1
+        self.failed += outcome.error is not None
+        self.screened += outcome.screened
 
     def _was_told(self, number: int) -> bool:
         return (number + 1) * self.resample <= self.told_below or number in self.told_extra
@@ -336,8 +345,8 @@ class Session:
             candidate = grouped.setdefault(
                 number, Candidate(number, evaluation.x, [None] * self.resample)
             )
-            candidate.outcomes[index % self.resample] = _outcome_of(evaluation)
-            self.stored += 1
+            candidate.outcomes[index % self.resample] = outcome = _outcome_of(evaluation)
+            self._count_reused(outcome)
         self.reusable.clear()
         return sorted(grouped.values(), key=lambda c: c.number)
 
@@ -358,8 +367,8 @@ class Session:
                 index = candidate.number * self.resample + sample
                 stored = self.reusable.pop(index, None)
                 if stored is not None and stored.x.tobytes() == candidate.x.tobytes():
-                    candidate.outcomes[sample] = _outcome_of(stored)
-                    self.stored += 1
+                    candidate.outcomes[sample] = outcome = _outcome_of(stored)
+                    self._count_reused(outcome)
                     continue
                 futures[executor.submit(self._task(candidate, index))] = candidate
 
@@ -419,7 +428,7 @@ class Session:
             """Take a complete stored before a stop, checked against its bound now (a stop
             kept it unchecked)."""
             done[candidate.number] = candidate.outcomes[0] = reused[candidate.number]
-            self.stored += 1
+            self._count_reused(done[candidate.number])
             self._check_bound(candidate, screened[candidate.number], done[candidate.number])
 
         def decide() -> None:
@@ -482,13 +491,16 @@ class Session:
             )
 
     def _reused_complete(self, candidates: list[Candidate]) -> dict[int, Outcome]:
-        """A resumed batch's candidates stored complete (or failed) before the interruption,
-        by number; stored screens are done again, since the order needs every bound."""
+        """A resumed batch's candidates stored complete before the interruption, by number;
+        stored screens are done again, since the order needs every bound. So is a failed row:
+        the store keeps no phase, and a failed screen (recorded before any complete starts)
+        taken as a complete would be counted twice when screened again, or stand for the
+        candidate's full evaluation where its screen succeeds this time."""
         reused: dict[int, Outcome] = {}
         for candidate in candidates:
             stored = self.reusable.pop(candidate.number, None)
             if (
-                stored is not None and stored.status != "screened"
+                stored is not None and stored.status == "ok"
                 and stored.x.tobytes() == candidate.x.tobytes()
             ):  # fmt: skip
                 reused[candidate.number] = _outcome_of(stored)
