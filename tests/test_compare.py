@@ -13,6 +13,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from rich.text import Text
 from scipy.stats import mannwhitneyu
 
 from metaopt.assessment.replay import replay_candidate, run_source
@@ -117,6 +118,7 @@ def test_the_csv_holds_the_values_the_terminal_table_shows(tmp_path: Path) -> No
     shown = [column for column in table.columns if column.in_terminal]
     assert [str(c.header) for c in rich.columns] == [c.header for c in shown]
     for rich_column, column in zip(rich.columns, shown):  # each cell a Text, shown as typed
+        assert all(isinstance(cell, Text) for cell in [rich_column.header, *rich_column._cells])
         assert list(map(str, rich_column._cells)) == [column.render(row) for row in rows]
     assert {"success_rate", "evaluations_to_target", "wall_time_median"} <= set(table.fields)
 

@@ -327,7 +327,7 @@ def test_queuing_an_evaluation_never_waits_on_a_write_to_a_locked_store(tmp_path
     deadline = time.monotonic() + 1.0
     while not store._write_lock.locked() and time.monotonic() < deadline:
         time.sleep(0.005)
-    assert store._write_lock.locked()  # the flush is writing, waiting on the other's lock
+    assert store._write_lock.locked()  # the flush holds the write lock
     started = time.monotonic()
     _queue_evaluations(store, run_id, range(10, 20))
     assert time.monotonic() - started < 0.5  # not the busy timeout

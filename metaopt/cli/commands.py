@@ -114,13 +114,13 @@ class MetaoptGroup(click.Group):
 def _error_line(message: str) -> None:
     """'Error: message' on one line, the message as it is (never read as rich markup)."""
     text = " ".join(message.splitlines())
-    errors.print(Text.assemble(plain("Error:", "bold red"), " ", plain(text)))
+    errors.print(Text.assemble(("Error:", "bold red"), " ", text))
 
 
 def _warning_line(message, category, filename, lineno, file=None, line=None) -> None:
     """SettingWarnings as one line; anything else as Python shows it."""
     if issubclass(category, SettingWarning):
-        errors.print(Text.assemble(plain("Warning:", "yellow"), " ", plain(str(message))))
+        errors.print(Text.assemble(("Warning:", "yellow"), " ", str(message)))
     else:
         errors.print(plain(warnings.formatwarning(message, category, filename, lineno, line)),
                      end="")  # fmt: skip
@@ -148,7 +148,7 @@ def list_plugins(name: str | None) -> None:
         console.print("[dim]metaopt list NAME shows one in full with every parameter.[/]")
         return
     kind, info = plugins.any_kind(name)  # raises with close matches of every kind
-    console.print(Text.assemble(plain(info.name, "bold cyan"), plain(f" ({kind}): {info.summary}")))
+    console.print(Text.assemble((info.name, "bold cyan"), f" ({kind}): {info.summary}"))
     if kind not in ("optimizer", "problem"):
         if getattr(info, "unavailable", None):
             console.print(plain(f"unavailable: {info.unavailable}"))

@@ -76,6 +76,15 @@ def settle(future: Future, outcome: Outcome) -> None:
         future.set_result(outcome)
 
 
+def wake_if_cancelled(future: Future) -> None:
+    """Wake the wait()ers of a cancelled task's future: cancel() alone leaves it CANCELLED, never
+    notified, so wait() and as_completed() would block on it for ever. Called from the future's
+    done callback, which runs once, in the thread whose cancel succeeded first: the one place
+    it is notified."""
+    if future.cancelled():
+        future.set_running_or_notify_cancel()
+
+
 class EvaluationTimeout(Exception):
     """An evaluation ran past its time limit."""
 

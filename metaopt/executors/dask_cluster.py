@@ -21,7 +21,14 @@ from concurrent.futures import Future
 from typing import TYPE_CHECKING
 
 from metaopt.errors import ConfigError
-from metaopt.executors.base import EvaluationTask, Executor, Outcome, evaluate_task, settle
+from metaopt.executors.base import (
+    EvaluationTask,
+    Executor,
+    Outcome,
+    evaluate_task,
+    settle,
+    wake_if_cancelled,
+)
 
 if TYPE_CHECKING:
     import distributed
@@ -99,15 +106,11 @@ class DaskExecutor(Executor):
         return result
 
     def _forget(self, result: Future) -> None:
-        """Drop a settled future from those shutdown cancels, and wake the wait()ers of a
-        cancelled one: cancel() alone leaves it CANCELLED, never notified, so wait() and
-        as_completed() would block on it for ever. As its done callback, this runs once, in
-        the thread whose cancel (its caller's, or shutdown's) succeeded first: the one place
-        it is notified."""
+        """Drop a settled future from those shutdown cancels; a cancelled one's wait()ers are
+        woken."""
         with self._changed:
             self._unsettled.discard(result)
-        if result.cancelled():
-            result.set_running_or_notify_cancel()
+        wake_if_cancelled(result)
 
     def _hand_over(self) -> None:
         """Give Dask waiting tasks while fewer than PREFETCH per worker are there (running or

@@ -32,6 +32,7 @@ from metaopt.executors.base import (
     prepared_problem,
     release_problems,
     settle,
+    wake_if_cancelled,
 )
 
 #: How often the manager thread looks at the clock when nothing else happens (time limits).
@@ -177,15 +178,11 @@ class ProcessExecutor(Executor):
         return future
 
     def _forget(self, future: Future) -> None:
-        """Drop a settled future from those a failure of the manager thread fails, and wake
-        the wait()ers of a cancelled one: cancel() alone leaves it CANCELLED, never notified,
-        so wait() and as_completed() would block on it for ever. As its done callback, this
-        runs once, in the thread whose cancel (its caller's, or shutdown's) succeeded first,
-        at once, not when the manager reaches it: the one place it is notified."""
+        """Drop a settled future from those a failure of the manager thread fails; a cancelled
+        one's wait()ers are woken at once, not when the manager reaches it."""
         with self._lock:
             self._unsettled.discard(future)
-        if future.cancelled():
-            future.set_running_or_notify_cancel()
+        wake_if_cancelled(future)
 
     def _manage(self) -> None:
         """The manager thread: serve until shut down. An error of its own (a replacement
@@ -275,12 +272,11 @@ class ProcessExecutor(Executor):
         try:
             outcome = ForkingPickler.loads(payload)
         except BaseException as error:  # a load's (EOFError, SystemExit too): not the pipe's
-            job, worker.job = worker.job, None
             reason = f"the outcome could not be read back: {type(error).__name__}: {error}"
-            # its wall time as the parent saw it: from the start of the timed evaluation
-            wall = 0.0 if worker.started is None else time.monotonic() - worker.started
-            settle(job.future, Outcome(job.task.index, None, error=reason, wall_time=wall))
-            return
+            # its wall time as the parent saw it: from the start of the timed evaluation (a
+            # worker always reports that start before the outcome)
+            wall = time.monotonic() - worker.started
+            outcome = Outcome(worker.job.task.index, None, error=reason, wall_time=wall)
         if outcome == STARTED:
             worker.started = time.monotonic()
             return
@@ -354,17 +350,15 @@ class ProcessExecutor(Executor):
         """Tell each idle worker to stop (it closes its problems) and terminate each busy one,
         then wait for them together: an idle one up to IDLE_GRACE, a busy one TERMINATE_GRACE."""
         now = time.monotonic()
-        deadlines = []
         for worker in self._pool:
             if worker.job is None:
                 with contextlib.suppress(OSError):
                     worker.connection.send(None)
-                deadlines.append(now + IDLE_GRACE)
             else:
                 worker.process.terminate()
-                deadlines.append(now + TERMINATE_GRACE)
-        for worker, deadline in zip(self._pool, deadlines, strict=True):
-            worker.process.join(timeout=max(0.0, deadline - time.monotonic()))
+        for worker in self._pool:  # the manager is stopped: each worker's job is fixed now
+            grace = IDLE_GRACE if worker.job is None else TERMINATE_GRACE
+            worker.process.join(timeout=max(0.0, now + grace - time.monotonic()))
 
 
 def _unpicklable(error: Exception) -> str:

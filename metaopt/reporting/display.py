@@ -33,7 +33,7 @@ from metaopt.assessment.search_medians import (
 )
 from metaopt.params import Param
 from metaopt.reporting.history import RunHistory
-from metaopt.reporting.plain import plain
+from metaopt.reporting.plain import plain, table_title
 from metaopt.reporting.recent import RecentFigures
 from metaopt.running import RunResult, common_seeds_mode
 from metaopt.storage.run_store import CandidateRecord, EvaluationCounts, RunRecord
@@ -75,10 +75,10 @@ def plugin_overview(kind: str, infos: Sequence, sources: Sequence[str]) -> Table
     table.add_column("range", overflow="fold")
     table.add_column("summary / meaning", overflow="fold")
     for info, source in zip(infos, sources):
-        summary = Text.assemble(plain(info.summary), " ", plain(f"(from {source})", "dim"))
+        summary = Text.assemble(info.summary, " ", (f"(from {source})", "dim"))
         if getattr(info, "unavailable", ""):
             summary = Text.assemble(
-                plain("unavailable:", "bold red"), " ", plain(info.unavailable), "\n", summary
+                ("unavailable:", "bold red"), " ", info.unavailable, "\n", summary
             )
         table.add_row(plain(info.name, "bold cyan"), "", "", "", summary)
         for p in getattr(info, "params", ()):
@@ -185,9 +185,8 @@ def replay_table(replay: Replay) -> Table:
     """`metaopt replay`: the stored metrics beside the replayed ones."""
     source = replay.source
     table = Table(
-        title=plain(
-            f"{source.label} replayed ({_replay_setting(source, replay.problem_params)})",
-            "table.title",
+        title=table_title(
+            f"{source.label} replayed ({_replay_setting(source, replay.problem_params)})"
         ),
         title_justify="left",
     )
@@ -512,7 +511,7 @@ def robustness_table(
         inert.setdefault((engine, reason), []).append(cell)
     caption = "\n".join(f"left out on {engine} ({', '.join(cells)}): {reason}"
                          for (engine, reason), cells in inert.items())  # fmt: skip
-    table = Table(title=plain(f"{label}: perturbation table {version}", "table.title"),
+    table = Table(title=table_title(f"{label}: perturbation table {version}"),
                   title_justify="left", caption=plain(caption, "table.caption") or None,
                   caption_justify="left")  # fmt: skip
     table.add_column("perturbation")
@@ -539,9 +538,9 @@ def search_medians_table(tables: Sequence, summary: Medians) -> Table:
     median, a rate's value), then per engine their median and standard deviation over the
     searches below a line."""
     first = tables[0]
-    table = Table(title=plain(f"{len(tables)} searches over perturbation table {first.version}: "
-                              "whole table per engine, and the median and sd over the searches",
-                              "table.title"), title_justify="left")  # fmt: skip
+    title = (f"{len(tables)} searches over perturbation table {first.version}: whole table per "
+             "engine, and the median and sd over the searches")  # fmt: skip
+    table = Table(title=table_title(title), title_justify="left")
     for name in ("search", "candidate", "engine"):
         table.add_column(name)
     _add_figure_columns(table, first.metrics)
@@ -589,8 +588,8 @@ def goal_ranking_table(ranked: Sequence, goals: Sequence) -> Table:
     the goals it misses there."""
     first = ranked[0].table
     sources = {r.table.source for r in ranked}
-    table = Table(title=plain(f"candidates ranked over perturbation table {first.version} by "
-                              f"the goals {', '.join(map(str, goals))}", "table.title"),
+    table = Table(title=table_title(f"candidates ranked over perturbation table {first.version} "
+                                    f"by the goals {', '.join(map(str, goals))}"),
                   title_justify="left")  # fmt: skip
     columns = ["rank", *(["file"] if len(sources) > 1 else []), "candidate", "goals missed",
                "goal margin", "engine"]  # fmt: skip
@@ -660,8 +659,8 @@ def robustness_ranking(
     fitness, the first metric's median and the rates."""
     rates = [m for m in metrics if is_rate(m)]
     by = f" by the goals {', '.join(map(str, goals))}" if goals else ""
-    table = Table(title=plain(f"candidates ranked over perturbation table {version}{by}",
-                              "table.title"), title_justify="left")  # fmt: skip
+    title = f"candidates ranked over perturbation table {version}{by}"
+    table = Table(title=table_title(title), title_justify="left")
     margin = ["goals missed", "goal margin"] if goals else []
     for name in ("rank", "candidate", *margin, "score", "engine", "fitness (mean)",
                  f"{metrics[0]} (median)", *rates):  # fmt: skip
@@ -714,7 +713,7 @@ def replay_seeds_table(replay: SeedReplay) -> Table:
         f"({_replay_setting(source, replay.problem_params)})"
         + (f", {failed} failed" if failed else "")
     )
-    table = Table(title=plain(title, "table.title"), title_justify="left")
+    table = Table(title=table_title(title), title_justify="left")
     stored = _stored_scores(source)
     for column in ("", *(["stored"] if stored is not None else []), "median", "IQR"):
         table.add_column(column, justify="left" if not column else "right")

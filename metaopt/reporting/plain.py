@@ -13,3 +13,9 @@ from rich.text import Text
 def plain(text: str, style: StyleType = "") -> Text:
     """``text`` exactly as typed (no markup, no emoji codes), in ``style``."""
     return Text(text, style=style)
+
+
+def table_title(text: str) -> Text:
+    """A table's title as typed: rich styles only a str title as one, so a Text gives it the
+    style itself."""
+    return plain(text, "table.title")

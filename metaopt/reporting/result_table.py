@@ -9,7 +9,7 @@ from typing import Any, TextIO
 
 from rich.table import Table
 
-from metaopt.reporting.plain import plain
+from metaopt.reporting.plain import plain, table_title
 
 Row = dict[str, Any]
 #: significant digits of numbers in the terminal (the CSV has them all)
@@ -58,7 +58,7 @@ class ResultTable:
         """The terminal table (the columns ``in_terminal``); its text is shown as it is, never
         read as rich markup (a label or setting may hold brackets)."""
         shown = [column for column in self.columns if column.in_terminal]
-        table = Table(title=plain(self.title, "table.title"), title_justify="left")
+        table = Table(title=table_title(self.title), title_justify="left")
         for index, column in enumerate(shown):
             justify = "left" if index < 2 else "right"
             table.add_column(plain(column.header), justify=justify, overflow="fold")

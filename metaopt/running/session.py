@@ -128,15 +128,16 @@ class Session:
                 self._score(Candidate(number, evaluations[0].x, outcomes))
             elif not self._was_told(number):
                 self.reusable.update((e.index, e) for e in evaluations)
-        # counted again when reused (_count_reused) or evaluated again (_record); a resumed
+        # counted again when reused (_count) or evaluated again (_record); a resumed
         # batch is screened again (_reused_complete): its screens are counted then
         for evaluation in self.reusable.values():
             self.stored -= 1
             self.failed -= evaluation.status == "failed"
             self.screened -= evaluation.status == "screened"
 
-    def _count_reused(self, outcome: Outcome) -> None:
-        """Count a stored outcome taken on resume (restore left it out of the counts)."""
+    def _count(self, outcome: Outcome) -> None:
+        """Count a stored outcome: one just recorded, or one taken on resume (restore left the
+        reusable ones out of the counts)."""
         self.stored += 1
         self.failed += outcome.error is not None
         self.screened += outcome.screened
@@ -346,7 +347,7 @@ class Session:
                 number, Candidate(number, evaluation.x, [None] * self.resample)
             )
             candidate.outcomes[index % self.resample] = outcome = _outcome_of(evaluation)
-            self._count_reused(outcome)
+            self._count(outcome)
         self.reusable.clear()
         return sorted(grouped.values(), key=lambda c: c.number)
 
@@ -368,7 +369,7 @@ class Session:
                 stored = self.reusable.pop(index, None)
                 if stored is not None and stored.x.tobytes() == candidate.x.tobytes():
                     candidate.outcomes[sample] = outcome = _outcome_of(stored)
-                    self._count_reused(outcome)
+                    self._count(outcome)
                     continue
                 futures[executor.submit(self._task(candidate, index))] = candidate
 
@@ -428,7 +429,7 @@ class Session:
             """Take a complete stored before a stop, checked against its bound now (a stop
             kept it unchecked)."""
             done[candidate.number] = candidate.outcomes[0] = reused[candidate.number]
-            self._count_reused(done[candidate.number])
+            self._count(done[candidate.number])
             self._check_bound(candidate, screened[candidate.number], done[candidate.number])
 
         def decide() -> None:
@@ -540,9 +541,7 @@ class Session:
             outcome.screened,
         )  # fmt: skip
         candidate.outcomes[outcome.index % self.resample] = outcome
-        self.stored += 1
-        self.failed += outcome.error is not None
-        self.screened += outcome.screened
+        self._count(outcome)
         self.first_error = self.first_error or outcome.error
         all_failed = self.failed >= self.stored >= ALL_FAILED_STOP and self.stored < self.total
         if all_failed and not self.keeping:  # the run stops anyway, all it finished kept
