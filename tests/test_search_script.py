@@ -120,9 +120,9 @@ def test_the_later_stages_time_needs_a_deadline_that_leaves_time(tmp_path):
     assert "DEADLINE must leave time" in line and "more than 1800" in line
 
 
-def test_auto_later_stages_keep_nothing_before_the_basin_race_is_timed(tmp_path):
-    """LATER_STAGES=auto passes the knob check and keeps no time until the basin race: stage 1
-    may then take all of a 1800 s deadline but a second."""
+def test_auto_later_stages_keep_nothing_before_the_calibration(tmp_path):
+    """LATER_STAGES=auto passes the knob check and keeps no time until the calibration before
+    stage 1: stage 1 may then take all of a 1800 s deadline but a second."""
     line = refusal(
         tmp_path,
         "/usr/bin:/bin",
@@ -135,20 +135,21 @@ def test_auto_later_stages_keep_nothing_before_the_basin_race_is_timed(tmp_path)
     assert "before DEADLINE: at most 1799" in line and "kept" not in line
 
 
-def auto_later_stages(race_seconds: int, basins: int, **knobs: str) -> int:
-    """The script's own auto_later_stages for a basin race of race_seconds over basins basins,
-    with the script's defaults for TOP, PIPELINES and RACE_SEEDS unless knobs set them."""
+def script_part(name: str) -> str:
+    """The script's function `name` (or `name=...` assignment line), as bash source."""
     source = SCRIPT.read_text()
-    function = re.search(r"^auto_later_stages\(\) \{.*?^\}$", source, re.S | re.M).group(0)
-    table = re.search(r"^table_episodes=\d+$", source, re.M).group(0)
+    found = re.search(rf"^{name}\(\) \{{.*?^\}}$|^{name}=[^\n]*$", source, re.S | re.M)
+    return found.group(0)
+
+
+def later_stages_for(milliseconds: int, **knobs: str) -> int:
+    """The script's own later_stages_for for a calibration of milliseconds, with the script's
+    defaults for TOP, PIPELINES and RACE_SEEDS unless knobs set them."""
     values = {"top": "3", "pipelines": "3", "race_seeds": "10", **knobs}
     assigned = "\n".join(f"{name}={value}" for name, value in values.items())
+    parts = "\n".join(script_part(name) for name in ("calibration_seeds", "later_stages_for"))
     done = subprocess.run(
-        [
-            "bash",
-            "-c",
-            f"{table}\n{assigned}\n{function}\nauto_later_stages {race_seconds} {basins}",
-        ],
+        ["bash", "-c", f"{parts}\n{assigned}\nlater_stages_for {milliseconds}"],
         capture_output=True,
         text=True,
         check=True,
@@ -156,20 +157,51 @@ def auto_later_stages(race_seconds: int, basins: int, **knobs: str) -> int:
     return int(done.stdout)
 
 
-def test_auto_later_stages_scale_the_basin_race_by_the_later_stages_episodes():
-    """Design T's shape (one pipeline, TOP=6, the race at 10 seeds, 7 basins): the later stages
-    walk 31 * (6 + 30 + 10) = 1426 episodes against the basin race's 7 * 24 = 168, so a 50 s
-    race keeps 50 * 1426 / 168 s, a fifth more (509 s) and 20 s for the commands; the time
-    grows with the race's, the race's seeds and the re-check's candidates."""
-    design_t = {"top": "6", "pipelines": "1"}
-    assert auto_later_stages(50, 7, **design_t) == 529
-    assert auto_later_stages(100, 7, **design_t) == 1038
-    assert auto_later_stages(50, 14, **design_t) == 274
+def test_auto_later_stages_scale_the_calibration_by_the_later_stages_passes():
+    """Design X's shape (one pipeline, TOP=6, the race at 10 seeds): the later stages walk
+    6 + 30 + 10 = 46 passes over the standard table against the calibration's 3, so a 15.5 s
+    calibration keeps 15.5 * 46 / 3 s (237 s) and 20 s for the commands; the time grows with
+    the calibration's, the race's seeds and the re-check's candidates."""
+    design_x = {"top": "6", "pipelines": "1"}
+    assert later_stages_for(15_500, **design_x) == 257
+    assert later_stages_for(31_000, **design_x) == 495
     assert (
-        auto_later_stages(50, 7, race_seeds="5", **design_t)
-        < 529
-        < auto_later_stages(50, 7, top="12", pipelines="1")
+        later_stages_for(15_500, race_seeds="5", **design_x)
+        < 257
+        < later_stages_for(15_500, top="12", pipelines="1")
     )
+
+
+def test_the_calibration_times_a_gait_that_stands_over_the_standard_table(tmp_path):
+    """calibrated_later_stages() walks the calibration gait over the standard table on every
+    engine, writes its table beside the store, and keeps the commands' 20 s plus the passes'
+    time it measured (here 9 s walks at one seed, so that it is quick); a calibration that
+    fails stops the search before any time is kept."""
+    metaopt = shutil.which("metaopt")
+    if metaopt is None:
+        pytest.skip("the metaopt command is not installed")
+    names = ("calibration_gait", "later_stages_for", "milliseconds", "calibrated_later_stages")
+    script = "set -euo pipefail\n" + "\n".join(script_part(name) for name in names)
+    script += "\ncalibration_seeds=1\ntop=1\npipelines=1\nrace_seeds=1\nseed=7\n"
+
+    def calibrated(duration: str) -> subprocess.CompletedProcess:
+        timed = f"{script}standard_walk=(--set duration={duration})\nstarted=$SECONDS\n"
+        timed += 'kept=$(calibrated_later_stages)\necho "$kept $((SECONDS - started))"\n'
+        return subprocess.run(
+            ["bash", "-c", timed], cwd=tmp_path, capture_output=True, text=True, timeout=300
+        )
+
+    done = calibrated("9")
+    assert done.returncode == 0, done.stderr
+    kept, took = map(int, done.stdout.split())
+    assert 20 + (took - 1) * 14 <= kept <= 20 + (took + 1) * 14  # 1 + 3 + 10 passes
+    table = (tmp_path / "robust-walk-s7-calibration.txt").read_text()
+    assert "hazard_walk" in table
+    for engine in ("mujoco", "pybullet", "ode"):
+        assert re.search(rf"whole table\s*│\s*{engine}", table), engine
+    refused = calibrated("1")  # shorter than the gait's 3 s lock: metaopt refuses it
+    assert refused.returncode != 0 and refused.stdout == ""
+    assert "must be shorter than duration" in refused.stderr
 
 
 def test_flat_best_needs_the_pooled_basins(tmp_path):

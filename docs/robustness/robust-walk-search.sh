@@ -86,10 +86,13 @@
 #   DEADLINE=SECONDS (pool) fits the search to a wall-clock limit: each stage 1b gets an even
 #     share of the time left to it, less LATER_STAGES, among the pipelines still to run.
 #   LATER_STAGES=SECONDS|auto (390) is the time kept for the re-check, race and table; auto
-#     sets it from the basin race's seconds per episode (the same 15 s walks on the same
-#     engines), times the later stages' episodes, a fifth more and 20 s (they took 0.92-1.09
-#     times the basin race's time per episode in designs H and R, so a fixed time starves
-#     stage 1b on a fast day and overruns on a slow one).
+#     times, before stage 1, a gait that stands (the stored hazard_walk) over the standard table
+#     at 3 seeds, and keeps that time per table pass for each pass the later stages walk, and
+#     20 s: a fixed time starves stage 1b on a fast day and overruns on a slow one. Design X's
+#     searches scaled it from the basin race's seconds per episode instead, which fell short
+#     when the basins fell early (seed 142: 172 s kept, 326 s used); a gait that stands walks
+#     each episode to its end, so the time kept is an upper bound (258 s against 185 s used
+#     when seed 142's later stages ran again on 2026-12-02).
 # Later stages
 #   TOP=K (3): the re-check takes each final stage 1b's K best; RECHECK_LAST=N only among its
 #     N latest candidates (where scores tie at the cap, the K best are otherwise the earliest).
@@ -182,7 +185,7 @@ if [ -n "${FLAT_FELL:-}" ]; then
     fi
 fi
 later_stages=${LATER_STAGES:-390}  # seconds DEADLINE keeps for the re-check, race and table
-if [ "$later_stages" = auto ]; then later_stages=0; fi  # until the basin race has been timed
+if [ "$later_stages" = auto ]; then later_stages=0; fi  # until the calibration before stage 1
 if [ -n "${LATER_STAGES:-}" ] && [ -z "${DEADLINE:-}" ]; then
     echo "LATER_STAGES needs DEADLINE (it is the part of DEADLINE kept for the later stages)," \
         "e.g. DEADLINE=1800 LATER_STAGES=480" >&2
@@ -291,15 +294,26 @@ race_basins() {  # $1: the ranking CSV; the rest: the runs whose bests are raced
         --set flight_penalty=50 "${standard_walk[@]}" --workers 2 --db "$db" \
         --ranking "$ranking"
 }
-#: episodes of one candidate over the standard table at one seed per cell (nao-walk-3: 11 cells
-#: on MuJoCo and PyBullet, 9 on ODE, whose two friction cells are left out)
-table_episodes=31
-auto_later_stages() {  # seconds to keep for the later stages, from the basin race's $1 seconds
-    # for $2 basins (8 seeds, nominal, 3 engines: 24 episodes each): the later stages walk the
-    # re-check's TOP per pipeline at one seed per cell, the race's 3 at RACE_SEEDS and the table
-    # at 10 seeds, 15 s episodes as the race's; a fifth more and 20 s for the three commands.
-    local episodes=$((table_episodes * (top * pipelines + 3 * race_seeds + 10)))
-    echo $(($1 * episodes * 6 / (5 * 24 * $2) + 20))
+calibration_gait=hazard_walk  # stands on every engine in all but a few % of the table's episodes
+calibration_seeds=3
+later_stages_for() {  # seconds to keep for the later stages, from $1 ms for the calibration's
+    # calibration_seeds passes over the standard table: the later stages walk the re-check's TOP
+    # per pipeline at one seed per cell, the race's 3 at RACE_SEEDS and the table at 10 seeds,
+    # each pass as long as the calibration's, and 20 s for the three commands. An upper bound:
+    # each pass is charged a share of the calibration command's start, and every episode walks
+    # to its end (a gait that falls ends its episodes early)
+    local passes=$((top * pipelines + 3 * race_seeds + 10))
+    echo $(($1 * passes / (1000 * calibration_seeds) + 20))
+}
+milliseconds() {  # the clock, in milliseconds (SECONDS counts whole seconds)
+    echo $((${EPOCHREALTIME/./} / 1000))
+}
+calibrated_later_stages() {  # times calibration_gait over the standard table; its seconds kept
+    local started
+    started=$(milliseconds)
+    metaopt robustness "$calibration_gait" --seeds "$calibration_seeds" --seed 1 \
+        "${standard_walk[@]}" --workers 2 > "robust-walk-s$seed-calibration.txt" || return 1
+    later_stages_for $(($(milliseconds) - started))
 }
 time_share() {  # pipeline $1's share of the time left to DEADLINE, seconds (a day without one)
     if [ -z "${DEADLINE:-}" ]; then echo 86400; return; fi
@@ -347,6 +361,11 @@ fastest_trial() {  # the run among $@ whose slowest_speed is highest (the first 
 if [ -n "${FINALS:-}" ]; then
     read -r -a finals <<< "$FINALS"
 else
+    if [ "${LATER_STAGES:-}" = auto ]; then
+        later_stages=$(calibrated_later_stages)
+        echo "LATER_STAGES=auto: $calibration_gait's table at $calibration_seeds seeds" \
+            "(robust-walk-s$seed-calibration.txt) keeps $later_stages s for the later stages" >&2
+    fi
     spare=$pipelines  # the pool's basins handed out so far
     pipelines_left=$pipelines
     pool_size=0
@@ -357,15 +376,8 @@ else
             pool+=("${ids[@]}")
         done
         basins="robust-walk-s$seed-basins.csv"
-        race_started=$SECONDS
         race_basins "$basins" "${pool[@]}"
         pool_size=${#pool[@]}
-        if [ "${LATER_STAGES:-}" = auto ]; then
-            race_seconds=$((SECONDS - race_started))  # read once: the estimate and its message agree
-            later_stages=$(auto_later_stages "$race_seconds" "$pool_size")
-            echo "LATER_STAGES=auto: the basin race took $race_seconds s for $pool_size basins;" \
-                "$later_stages s kept for the later stages" >&2
-        fi
     fi
     if [ -n "${TRIALS:-}" ]; then  # one pipeline: trials from the pool's best basins, then the best
         trials=()
