@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import builtins
 import concurrent.futures
+import contextlib
 import errno
 import gc
 import os
@@ -16,6 +17,7 @@ import threading
 import time
 import urllib.request
 import warnings
+from collections.abc import Iterator
 from multiprocessing import resource_tracker
 from pathlib import Path
 
@@ -485,41 +487,49 @@ def test_a_task_that_does_not_pickle_fails_alone_and_the_pool_serves_on():
         executor.shutdown()
 
 
+@contextlib.contextmanager
+def _no_descriptor_left_open() -> Iterator[None]:
+    """Asserts that the block leaves open no file descriptor of this process that was not open
+    before it (a pool's pipes, its workers' Process sentinels)."""
+    resource_tracker.ensure_running()  # the first spawned process starts it, open for good
+    gc.collect()  # an earlier test's garbage closing its descriptors meanwhile would mislead
+    descriptors = set(os.listdir("/dev/fd"))
+    yield
+    gc.collect()
+    assert set(os.listdir("/dev/fd")) <= descriptors  # none opened and left open
+
+
 def test_a_replacement_worker_that_cannot_start_fails_every_task_instead_of_hanging():
     """No file descriptor left when a dead worker is replaced: every task waiting or running
     fails at once with BrokenExecutor naming the error, and so do later submits (the error
     ended the manager thread and left them waiting for ever); shutdown still stops every
     worker, and no descriptor is left open, nor the pipe of the worker that could not start."""
-    resource_tracker.ensure_running()  # the first spawned process starts it, open for good
-    gc.collect()  # an earlier test's garbage closing its descriptors meanwhile would mislead
-    descriptors = set(os.listdir("/dev/fd"))
-    executor = registry().executor("process").factory(2, None)
-    processes = [worker.process for worker in executor._pool]
-    try:
-        warm_up = _sphere_tasks(2, time_limit=None)
-        assert all(executor.submit(t).result(timeout=120).error is None for t in warm_up)
-        deadly = EvaluationTask(9, np.zeros(2), 0, _kill_own_process, {})
-        soft, hard = resource.getrlimit(resource.RLIMIT_NOFILE)
-        lowest_free = os.open(os.devnull, os.O_RDONLY)
-        os.close(lowest_free)
-        resource.setrlimit(resource.RLIMIT_NOFILE, (lowest_free, hard))  # no new descriptor
+    with _no_descriptor_left_open():
+        executor = registry().executor("process").factory(2, None)
+        processes = [worker.process for worker in executor._pool]
         try:
-            futures = [executor.submit(t) for t in [deadly, *_sphere_tasks(3, time_limit=None)]]
-            _, waiting = concurrent.futures.wait(futures, timeout=30)
+            warm_up = _sphere_tasks(2, time_limit=None)
+            assert all(executor.submit(t).result(timeout=120).error is None for t in warm_up)
+            deadly = EvaluationTask(9, np.zeros(2), 0, _kill_own_process, {})
+            soft, hard = resource.getrlimit(resource.RLIMIT_NOFILE)
+            lowest_free = os.open(os.devnull, os.O_RDONLY)
+            os.close(lowest_free)
+            resource.setrlimit(resource.RLIMIT_NOFILE, (lowest_free, hard))  # no new descriptor
+            try:
+                futures = [executor.submit(t) for t in [deadly, *_sphere_tasks(3, time_limit=None)]]
+                _, waiting = concurrent.futures.wait(futures, timeout=30)
+            finally:
+                resource.setrlimit(resource.RLIMIT_NOFILE, (soft, hard))
+            assert not waiting
+            broken = "the process pool stopped: its manager thread failed with OSError"
+            with pytest.raises(concurrent.futures.BrokenExecutor, match=broken):
+                futures[0].result()
+            for future in futures[1:]:  # finished before the failure, or failed by it
+                assert future.exception() is None or broken in str(future.exception())
+            with pytest.raises(concurrent.futures.BrokenExecutor, match=broken):
+                executor.submit(warm_up[0])
         finally:
-            resource.setrlimit(resource.RLIMIT_NOFILE, (soft, hard))
-        assert not waiting
-        broken = "the process pool stopped: its manager thread failed with OSError"
-        with pytest.raises(concurrent.futures.BrokenExecutor, match=broken):
-            futures[0].result()
-        for future in futures[1:]:  # finished before the failure, or failed by it
-            assert future.exception() is None or broken in str(future.exception())
-        with pytest.raises(concurrent.futures.BrokenExecutor, match=broken):
-            executor.submit(warm_up[0])
-    finally:
-        executor.shutdown()
-    gc.collect()
-    assert set(os.listdir("/dev/fd")) <= descriptors  # none opened and left open
+            executor.shutdown()
     for process in processes:
         with pytest.raises(ValueError, match="closed"):
             process.is_alive()  # stopped, and its Process closed
@@ -541,13 +551,8 @@ def test_a_pool_whose_worker_cannot_start_stops_the_workers_started_before_it(mo
         started.append(worker)
 
     monkeypatch.setattr(process_pool._Worker, "__init__", third_cannot_start)
-    resource_tracker.ensure_running()  # the first spawned process starts it, open for good
-    gc.collect()  # an earlier test's garbage closing its descriptors meanwhile would mislead
-    descriptors = set(os.listdir("/dev/fd"))
-    with pytest.raises(OSError, match="Too many open files"):
+    with _no_descriptor_left_open(), pytest.raises(OSError, match="Too many open files"):
         registry().executor("process").factory(3, None)
-    gc.collect()
-    assert set(os.listdir("/dev/fd")) <= descriptors  # none opened and left open
     assert len(started) == 2 and all(worker.connection.closed for worker in started)
     for worker in started:
         with pytest.raises(ValueError, match="closed"):
@@ -682,35 +687,31 @@ def test_an_interrupt_mid_shutdown_still_stops_every_worker_and_cancels_every_ta
     """A second Ctrl-C as shutdown waits for the first worker to end still leaves every worker
     killed, every pipe and Process closed, no descriptor open and every task cancelled (it cut
     the teardown short: the other workers ran on, their callers waiting for ever)."""
-    resource_tracker.ensure_running()  # the first spawned process starts it, open for good
-    gc.collect()  # an earlier test's garbage closing its descriptors meanwhile would mislead
-    descriptors = set(os.listdir("/dev/fd"))
-    executor = registry().executor("process").factory(2, None)
-    workers = list(executor._pool)
-    pipes = [executor._wake_reader, executor._wake_writer]
-    pipes += [worker.connection for worker in workers]
-    futures = [executor.submit(task) for task in _sleeping_tasks(3)]
-    _wait_until_all_busy(executor)
-    first, join = workers[0].process, workers[0].process.join
-    joins: list[float | None] = []
+    with _no_descriptor_left_open():
+        executor = registry().executor("process").factory(2, None)
+        workers = list(executor._pool)
+        pipes = [executor._wake_reader, executor._wake_writer]
+        pipes += [worker.connection for worker in workers]
+        futures = [executor.submit(task) for task in _sleeping_tasks(3)]
+        _wait_until_all_busy(executor)
+        first, join = workers[0].process, workers[0].process.join
+        joins: list[float | None] = []
 
-    def interrupted_once(timeout: float | None = None) -> None:
-        joins.append(timeout)
-        if len(joins) == 1:
-            raise KeyboardInterrupt
-        join(timeout)
+        def interrupted_once(timeout: float | None = None) -> None:
+            joins.append(timeout)
+            if len(joins) == 1:
+                raise KeyboardInterrupt
+            join(timeout)
 
-    first.join = interrupted_once
-    with pytest.raises(KeyboardInterrupt):
-        executor.shutdown()
-    assert len(joins) == 2  # interrupted, then joined again as it was killed
-    assert all(future.cancelled() for future in futures)
-    assert len(pipes) == 4 and all(pipe.closed for pipe in pipes)
-    for worker in workers:
-        with pytest.raises(ValueError, match="closed"):
-            worker.process.is_alive()  # killed, joined, and its Process closed
-    gc.collect()
-    assert set(os.listdir("/dev/fd")) <= descriptors  # none opened and left open
+        first.join = interrupted_once
+        with pytest.raises(KeyboardInterrupt):
+            executor.shutdown()
+        assert len(joins) == 2  # interrupted, then joined again as it was killed
+        assert all(future.cancelled() for future in futures)
+        assert len(pipes) == 4 and all(pipe.closed for pipe in pipes)
+        for worker in workers:
+            with pytest.raises(ValueError, match="closed"):
+                worker.process.is_alive()  # killed, joined, and its Process closed
 
 
 def test_dask_shutdown_cancels_every_unsettled_task_and_wakes_its_waiters():
