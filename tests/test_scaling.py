@@ -445,17 +445,35 @@ def test_workers_that_die_as_they_start_fail_the_task_instead_of_starting_for_ev
         executor.shutdown()
 
 
-def test_a_future_its_caller_cancelled_is_passed_over_and_the_pool_serves_on():
-    """Cancelling a task (waiting or running) leaves the pool serving: its outcome, if it
-    comes, is dropped, and the next tasks complete."""
+class _Marks(Problem):
+    """A 2-D problem whose evaluation leaves a file named by its seed in folder, after
+    sleeping seconds: which tasks ran can be read back from the folder."""
+
+    def __init__(self, folder: str, seconds: float = 0.0) -> None:
+        self.space = Space.from_bounds([-1.0, -1.0], [1.0, 1.0])
+        self.folder, self.seconds = Path(folder), seconds
+
+    def evaluate(self, x, seed):
+        time.sleep(self.seconds)
+        (self.folder / str(seed)).touch()
+        return Evaluation(float(np.sum(x**2)))
+
+
+def test_a_future_its_caller_cancelled_is_passed_over_and_the_pool_serves_on(tmp_path):
+    """Cancelling a waiting task leaves the pool serving: the task never runs, and the next
+    tasks complete."""
     executor = registry().executor("process").factory(1, None)
     try:
-        first, cancelled, *later = (executor.submit(task) for task in _sphere_tasks(4, None))
-        assert cancelled.cancel()
+        params = {"folder": str(tmp_path)}
+        first = EvaluationTask(0, np.zeros(2), 0, _Marks, {**params, "seconds": 0.5})
+        tasks = [EvaluationTask(i, np.zeros(2), i, _Marks, params) for i in (1, 2, 3)]
+        first, cancelled, *later = (executor.submit(task) for task in [first, *tasks])
+        assert cancelled.cancel()  # waiting: the one worker is busy with the first
         assert first.result(timeout=60).error is None
         assert [future.result(timeout=60).error for future in later] == [None, None]
         (after,) = _sphere_tasks(1, time_limit=None)
         assert executor.submit(after).result(timeout=60).error is None
+        assert sorted(path.name for path in tmp_path.iterdir()) == ["0", "2", "3"]
     finally:
         executor.shutdown()
 
