@@ -57,7 +57,9 @@
 #     the table).
 #   STAGE1_TIME=SECONDS (pool) gives all stage-1 runs together at most that long, each an even
 #     share of what is left (metaopt run --max-time): a slow day cuts stage 1's evaluations,
-#     not stage 1b's time.
+#     not stage 1b's time. It counts from stage 1's start, after LATER_STAGES=auto's
+#     calibration (design AB's stage 1 counted from the script's start, the calibration's 16 s
+#     in it).
 # Stage 1b
 #   STAGE1B_OPTIMIZER=NAME (hs) with its settings in STAGE1B_SET, e.g. cmaes with sigma0=0.05
 #     (CMA-ES started at the raced basin, its step 0.05 of each range).
@@ -278,7 +280,8 @@ stage1() {  # pipeline $1's stage-1 runs; their run ids go to ids
     local limit=()
     for r in $(seq 1 "$stage1_runs"); do
         if [ -n "${STAGE1_TIME:-}" ]; then  # stage 1 is the first runs (STAGE1B_START=pool)
-            limit=(--max-time "$(even_share "$STAGE1_TIME" $((pipelines * stage1_runs - run)))")
+            limit=(--max-time "$(even_share $((stage1_from + STAGE1_TIME)) \
+                $((pipelines * stage1_runs - run)))")
         fi
         metaopt run "${stage1_run[@]}" --seed $((100 * seed + 10 * $1 + r)) \
             ${limit[@]+"${limit[@]}"} --db "$db"
@@ -307,7 +310,7 @@ later_stages_for() {  # seconds to keep for the later stages, from $1 ms for the
     echo $(($1 * passes * 5 / (4 * 1000 * calibration_seeds) + 20))
 }
 milliseconds() {  # the clock, in milliseconds (SECONDS counts whole seconds)
-    echo $((${EPOCHREALTIME/./} / 1000))
+    echo $((${EPOCHREALTIME//[!0-9]/} / 1000))  # its decimal point is the locale's
 }
 calibrated_later_stages() {  # times calibration_gait over the standard table; its seconds kept
     local started
@@ -367,6 +370,7 @@ else
         echo "LATER_STAGES=auto: $calibration_gait's table at $calibration_seeds seeds" \
             "(robust-walk-s$seed-calibration.txt) keeps $later_stages s for the later stages" >&2
     fi
+    stage1_from=$SECONDS  # STAGE1_TIME counts from here
     spare=$pipelines  # the pool's basins handed out so far
     pipelines_left=$pipelines
     pool_size=0
