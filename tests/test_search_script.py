@@ -231,7 +231,7 @@ def test_the_flat_check_reads_the_runs_best_from_the_store(tmp_path):
     best = json.loads(shown.stdout)["best"]["fitness"]
 
     def verdict(flat_best: float, store: Path) -> subprocess.CompletedProcess:
-        script = f"set -euo pipefail\n{flat_function()}\ndb={store}\nFLAT_BEST={flat_best}\n"
+        script = f"set -euo pipefail\n{script_part('flat')}\ndb={store}\nFLAT_BEST={flat_best}\n"
         script += 'verdict=$(flat 1)\necho "$verdict"\n'
         return subprocess.run(["bash", "-c", script], capture_output=True, text=True, timeout=60)
 
@@ -239,11 +239,6 @@ def test_the_flat_check_reads_the_runs_best_from_the_store(tmp_path):
     assert verdict(best - 1, db).stdout == "no\n"
     unread = verdict(best + 1, tmp_path / "missing.db")
     assert unread.returncode != 0 and unread.stdout == ""  # stopped before any verdict
-
-
-def flat_function() -> str:
-    """The script's own flat() function, as bash source."""
-    return re.search(r"^flat\(\) \{.*?^\}$", SCRIPT.read_text(), re.S | re.M).group(0)
 
 
 def test_the_flat_check_also_reads_the_share_of_the_last_candidates_that_fell(tmp_path):
@@ -271,7 +266,7 @@ def test_the_flat_check_also_reads_the_share_of_the_last_candidates_that_fell(tm
         return db, shown["best"]["fitness"], fell
 
     def verdict(store: Path, flat_best: float, flat_fell: float | str) -> str:
-        script = f"set -euo pipefail\n{flat_function()}\ndb={store}\n"
+        script = f"set -euo pipefail\n{script_part('flat')}\ndb={store}\n"
         script += f"FLAT_BEST={flat_best}\nFLAT_FELL={flat_fell}\n"
         script += 'verdict=$(flat 1)\necho "$verdict"\n'
         done = subprocess.run(["bash", "-c", script], capture_output=True, text=True, timeout=60)
