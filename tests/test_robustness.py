@@ -133,7 +133,7 @@ def test_every_stored_gait_starts_from_the_nominal_world_so_its_table_is_unchang
         # worlds was reset by nao-walk-2 already; the others are new in nao-walk-3. world_cells
         # only names the cells a search's sampled worlds draw from, and cell_durations how long
         # those cells walk: nao-walk-2's worlds=none refuses both, so a gait searched with them
-        # (balanced_cells_walk, hazard_walk) has nao-walk-3 tables only
+        # (balanced_cells_walk, hazard_walk, quarter_walk) has nao-walk-3 tables only
         sampling = ("worlds", "world_cells", "cell_durations")
         added = {key: value for key, value in NOMINAL_WORLD.items() if key not in sampling}
         assert {key: params[key] for key in added} == added, name
