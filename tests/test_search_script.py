@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import os
 import re
 import shutil
 import subprocess
@@ -203,6 +204,53 @@ def test_the_calibration_times_a_gait_that_stands_over_the_standard_table(tmp_pa
     refused = calibrated("1")  # shorter than the gait's 3 s lock: metaopt refuses it
     assert refused.returncode != 0 and refused.stdout == ""
     assert "must be shorter than duration" in refused.stderr
+
+
+def test_a_calibration_that_keeps_too_much_stops_the_search_in_one_line(tmp_path):
+    """After the calibration, the time it kept must leave stage 1 its STAGE1_TIME and stage 1b a
+    second before DEADLINE; otherwise one line says by how much, and the search stops (exit 2)."""
+    check = script_part("refuse_a_calibration_that_leaves_no_stage1b")
+
+    def checked(
+        deadline: int, gone: int, kept: int, stage1_time: int
+    ) -> subprocess.CompletedProcess:
+        knobs = f"DEADLINE={deadline} SECONDS={gone} later_stages={kept} STAGE1_TIME={stage1_time}"
+        program = f"set -euo pipefail\n{check}\nseed=7 {knobs}\n"
+        program += "refuse_a_calibration_that_leaves_no_stage1b\necho stage 1"
+        return subprocess.run(["bash", "-c", program], capture_output=True, text=True, timeout=60)
+
+    left = checked(1800, 17, 360, 490)  # design AC's seed 147: 933 s left to stage 1b
+    assert left.returncode == 0 and left.stdout == "stage 1\n" and left.stderr == ""
+    assert checked(1800, 17, 1292, 490).returncode == 0  # one second left
+    refused = checked(1800, 17, 1293, 490)
+    assert refused.returncode == 2 and refused.stdout == ""
+    assert refused.stderr.splitlines() == [
+        "LATER_STAGES=auto kept 1293 s for the later stages (robust-walk-s7-calibration.txt),"
+        " which with 17 s gone and STAGE1_TIME=490 leaves stage 1b no time before"
+        " DEADLINE=1800: give a DEADLINE of at least 1801, or LATER_STAGES in seconds"
+    ]
+
+
+@pytest.mark.slow
+def test_the_search_stops_after_a_calibration_that_leaves_no_stage1b_and_keeps_no_store(tmp_path):
+    """The whole script: a deadline the check before the calibration passes (LATER_STAGES=auto
+    keeps nothing until then) but the calibration's time does not leave, is refused after the
+    calibration, in one line, with nothing written but the calibration's table."""
+    if shutil.which("metaopt") is None:
+        pytest.skip("the metaopt command is not installed")
+    knobs = {"LATER_STAGES": "auto", "DEADLINE": "120", "STAGE1_TIME": "100"}
+    done = subprocess.run(
+        ["bash", str(SCRIPT), "7"],
+        cwd=tmp_path,
+        env={"PATH": os.environ["PATH"], "STAGE1B_START": "pool", **knobs},
+        capture_output=True,
+        text=True,
+        timeout=600,
+    )
+    assert done.returncode == 2, done.stderr
+    last = done.stderr.strip().splitlines()[-1]
+    assert last.startswith("LATER_STAGES=auto kept ") and "DEADLINE=120: give a DEADLINE" in last
+    assert [path.name for path in tmp_path.iterdir()] == ["robust-walk-s7-calibration.txt"]
 
 
 def test_flat_best_needs_the_pooled_basins(tmp_path):

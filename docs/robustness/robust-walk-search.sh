@@ -94,7 +94,9 @@
 #     one. Design X's searches scaled it from the basin race's seconds per episode instead,
 #     which fell short when the basins fell early (seed 142: 172 s kept, 326 s used); design
 #     AB's kept the calibration's time without the quarter, and seed 146's later stages took
-#     255 s of the 253 kept. The search ends by saying how long its later stages took.
+#     255 s of the 253 kept. The search ends by saying how long its later stages took. If the
+#     calibration keeps so much that stage 1b would have no time before DEADLINE, the search
+#     stops there (exit 2), before stage 1.
 # Later stages
 #   TOP=K (3): the re-check takes each final stage 1b's K best; RECHECK_LAST=N only among its
 #     N latest candidates (where scores tie at the cap, the K best are otherwise the earliest).
@@ -319,6 +321,17 @@ calibrated_later_stages() {  # times calibration_gait over the standard table; i
         "${standard_walk[@]}" --workers 2 > "robust-walk-s$seed-calibration.txt" || return 1
     later_stages_for $(($(milliseconds) - started))
 }
+refuse_a_calibration_that_leaves_no_stage1b() {  # exit 2 unless the time the calibration
+    # kept for the later stages leaves stage 1 its STAGE1_TIME and stage 1b a second before
+    # DEADLINE: the check before the calibration could not know what it would keep
+    local left=$((DEADLINE - SECONDS - later_stages - ${STAGE1_TIME:-0}))
+    if [ "$left" -ge 1 ]; then return; fi
+    echo "LATER_STAGES=auto kept $later_stages s for the later stages" \
+        "(robust-walk-s$seed-calibration.txt), which with $SECONDS s gone" \
+        "and STAGE1_TIME=${STAGE1_TIME:-0} leaves stage 1b no time before DEADLINE=$DEADLINE:" \
+        "give a DEADLINE of at least $((DEADLINE - left + 1)), or LATER_STAGES in seconds" >&2
+    exit 2
+}
 time_share() {  # pipeline $1's share of the time left to DEADLINE, seconds (a day without one)
     if [ -z "${DEADLINE:-}" ]; then echo 86400; return; fi
     even_share $((DEADLINE - later_stages)) $((pipelines - $1 + 1))
@@ -369,6 +382,7 @@ else
         later_stages=$(calibrated_later_stages)
         echo "LATER_STAGES=auto: $calibration_gait's table at $calibration_seeds seeds" \
             "(robust-walk-s$seed-calibration.txt) keeps $later_stages s for the later stages" >&2
+        refuse_a_calibration_that_leaves_no_stage1b
     fi
     stage1_from=$SECONDS  # STAGE1_TIME counts from here
     spare=$pipelines  # the pool's basins handed out so far
