@@ -219,14 +219,14 @@ def test_a_calibration_that_keeps_too_much_stops_the_search_in_one_line(tmp_path
         program += "refuse_a_calibration_that_leaves_no_stage1b\necho stage 1"
         return subprocess.run(["bash", "-c", program], capture_output=True, text=True, timeout=60)
 
-    left = checked(1800, 17, 360, 490)  # design AC's seed 147: 933 s left to stage 1b
+    left = checked(1800, 19, 360, 490)  # design AC's seed 147: 931 s left to stage 1b
     assert left.returncode == 0 and left.stdout == "stage 1\n" and left.stderr == ""
-    assert checked(1800, 17, 1292, 490).returncode == 0  # one second left
-    refused = checked(1800, 17, 1293, 490)
+    assert checked(1800, 19, 1290, 490).returncode == 0  # one second left
+    refused = checked(1800, 19, 1291, 490)
     assert refused.returncode == 2 and refused.stdout == ""
     assert refused.stderr.splitlines() == [
-        "LATER_STAGES=auto kept 1293 s for the later stages (robust-walk-s7-calibration.txt),"
-        " which with 17 s gone and STAGE1_TIME=490 leaves stage 1b no time before"
+        "LATER_STAGES=auto kept 1291 s for the later stages (robust-walk-s7-calibration.txt),"
+        " which with 19 s gone and STAGE1_TIME=490 leaves stage 1b no time before"
         " DEADLINE=1800: give a DEADLINE of at least 1801, or LATER_STAGES in seconds"
     ]
 
