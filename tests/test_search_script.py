@@ -215,7 +215,8 @@ def test_a_calibration_that_keeps_too_much_stops_the_search_in_one_line(tmp_path
         deadline: int, gone: int, kept: int, stage1_time: int
     ) -> subprocess.CompletedProcess:
         knobs = f"DEADLINE={deadline} SECONDS={gone} later_stages={kept} STAGE1_TIME={stage1_time}"
-        program = f"set -euo pipefail\n{check}\nseed=7 {knobs}\n"
+        # unset, SECONDS stops ticking: the boundary below is exact whenever the clock turns
+        program = f"set -euo pipefail\n{check}\nunset SECONDS\nseed=7 {knobs}\n"
         program += "refuse_a_calibration_that_leaves_no_stage1b\necho stage 1"
         return subprocess.run(["bash", "-c", program], capture_output=True, text=True, timeout=60)
 
@@ -248,8 +249,18 @@ def test_the_search_stops_after_a_calibration_that_leaves_no_stage1b_and_keeps_n
         timeout=600,
     )
     assert done.returncode == 2, done.stderr
-    last = done.stderr.strip().splitlines()[-1]
-    assert last.startswith("LATER_STAGES=auto kept ") and "DEADLINE=120: give a DEADLINE" in last
+    calibration, refusal = done.stderr.strip().splitlines()  # the calibration's line, then one
+    kept = re.fullmatch(r"LATER_STAGES=auto: .* keeps (\d+) s for the later stages", calibration)
+    assert kept, calibration
+    said = re.fullmatch(
+        r"LATER_STAGES=auto kept (\d+) s for the later stages \(robust-walk-s7-calibration.txt\),"
+        r" which with (\d+) s gone and STAGE1_TIME=100 leaves stage 1b no time before"
+        r" DEADLINE=120: give a DEADLINE of at least (\d+), or LATER_STAGES in seconds",
+        refusal,
+    )
+    assert said, refusal
+    later, gone, needed = map(int, said.groups())
+    assert later == int(kept.group(1)) and needed == later + gone + 100 + 1
     assert [path.name for path in tmp_path.iterdir()] == ["robust-walk-s7-calibration.txt"]
 
 
